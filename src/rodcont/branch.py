@@ -1,0 +1,299 @@
+"""Equilibria and branches of the twisted heavy rod: the rod model on the generic core and tracker.
+
+``solve_equilibrium`` loads ``phi_L`` up from 0 by natural continuation
+(Newton at each load step). ``trace`` follows the branch in ``phi_L`` by
+pseudo-arclength continuation through its folds, monitors the outputs of
+PROBLEM.md at every point, locates folds, branch points and forced values,
+and stops at the validity guard ``min d3.K3 = min_alignment``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .collocation import Collocation, NewtonResult
+from .continuation import ContinuationSettings, Event, Point, Tracker, StopContinuation
+from .rod import EulerianRod, RodParameters, PARAMS
+
+OUTPUTS = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "defect")
+
+
+class RodSystem:
+    """The discretised rod as a one-parameter problem ``F(x, p) = 0`` for the tracker.
+
+    ``param`` names the continuation parameter (default ``phi_L``); every other
+    entry of ``(phi_L, T, w, EI, GJ, EA)`` is held at ``base``.
+    """
+
+    def __init__(self, rod: RodParameters, gamma: float, N: int = 15, k: int = 5, param: str = "phi_L",
+                 phi_L: float = 0.0):
+        self.rod = rod
+        self.model = EulerianRod(rod)
+        self.disc: Collocation = self.model.discretise(N, k)
+        self.gamma = float(gamma)
+        self.base = self.model.params(phi_L, T=rod.tension(gamma))
+        self.index = PARAMS.index(param)
+        self.param = param
+
+    def params(self, value: float) -> np.ndarray:
+        p = self.base.copy()
+        p[self.index] = value
+        return p
+
+    def residual(self, x, value):
+        return self.disc.residual(x, self.params(value))
+
+    def linearise(self, x, value):
+        F, J, Fp = self.disc.linearise(x, self.params(value), [self.index])
+        return F, J, Fp[0]
+
+    def tangent(self, x, value):
+        return self.linearise(x, value)[1:]
+
+    def outputs(self, x, value) -> dict:
+        p = self.params(value)
+        o = self.model.outputs(self.disc, x, p)
+        return dict(phi_L=float(p[0]), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
+                    helical_waves=o["helical_waves"], min_alignment=o["min_alignment"],
+                    defect=o["defect"], torque_spread=o["torque_spread"])
+
+
+@dataclass
+class Equilibrium:
+    """One solved equilibrium: its outputs, the unknown vector and how Newton ended."""
+
+    outputs: dict
+    x: np.ndarray
+    system: RodSystem
+    newton: NewtonResult
+
+    @property
+    def converged(self) -> bool:
+        return self.newton.converged
+
+    def centreline(self, S=None):
+        S = np.linspace(0, self.system.rod.L, 201) if S is None else S
+        return self.system.model.centreline(self.system.disc, self.x, S)
+
+
+class ConvergenceError(RuntimeError):
+    pass
+
+
+def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
+                      load_step: float = 0.5, tol: float = 1e-10) -> Equilibrium:
+    """Equilibrium at ``(gamma, phi_L)`` reached by loading ``phi_L`` up from 0 in steps.
+
+    A step that fails is halved (down to ``load_step / 1024``). Natural
+    continuation cannot pass a fold in ``phi_L``: beyond the first fold it
+    reports non-convergence (``ConvergenceError``) and says where it stopped.
+    """
+    rod = rod or RodParameters()
+    _check_finite(gamma=gamma, phi_L=phi_L, load_step=load_step)
+    if load_step <= 0:
+        raise ValueError("load_step must be positive")
+    sysm = RodSystem(rod, gamma, N, k)
+    x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
+    r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)
+    if not r.converged:
+        raise ConvergenceError(f"no equilibrium found at phi_L = 0 (Gamma = {gamma:g}): {r.message}")
+    x, done, step = r.x, 0.0, math.copysign(load_step, phi_L) if phi_L else load_step
+    while done != phi_L:
+        target = done + step
+        if (target - phi_L) * math.copysign(1.0, step) > 0:
+            target = phi_L
+        r = sysm.disc.newton(x, sysm.params(target), tol=tol)
+        if r.converged:
+            x, done = r.x, target
+        else:
+            step *= 0.5
+            if abs(step) < load_step / 1024:
+                raise ConvergenceError(f"loading stopped at phi_L = {done:.10g} (a fold of the branch is "
+                                       f"likely just beyond; use 'rodcont trace'): {r.message}")
+    return Equilibrium(sysm.outputs(x, phi_L), x, sysm, r)
+
+
+def _check_finite(**values):
+    for name, v in values.items():
+        if not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+            raise ValueError(f"{name} must be a finite number, got {v!r}")
+
+
+# --------------------------------------------------------------------------
+# Branches
+# --------------------------------------------------------------------------
+@dataclass
+class Branch:
+    """A traced branch: table of outputs per point, the special points, and the unknowns for restarts."""
+
+    gamma: float
+    rod: RodParameters
+    N: int
+    k: int
+    table: dict = field(default_factory=lambda: {name: [] for name in OUTPUTS + ("arclength", "kind")})
+    coefficients: list = field(default_factory=list)
+    tangents: list = field(default_factory=list)
+    stop_reason: str = ""
+    elapsed: float = 0.0
+    steps: int = 0
+    newton_iterations: int = 0
+
+    def __len__(self) -> int:
+        return len(self.coefficients)
+
+    def add(self, pt: Point) -> None:
+        for name in OUTPUTS:
+            self.table[name].append(pt.data[name])
+        self.table["arclength"].append(pt.arclength)
+        self.table["kind"].append(pt.kind)
+        self.coefficients.append(pt.x)
+        self.tangents.append(np.append(pt.tx, pt.tp))
+
+    def column(self, name: str) -> np.ndarray:
+        return np.asarray(self.table[name])
+
+    @property
+    def folds(self) -> list[dict]:
+        """Fold table: outputs at each located fold, waves on either side, index along the branch."""
+        kinds = self.table["kind"]
+        waves = self.table["helical_waves"]
+        out = []
+        for i, kind in enumerate(kinds):
+            if kind == "fold":
+                before = next((waves[j] for j in range(i - 1, -1, -1) if kinds[j] != "fold"), waves[i])
+                after = next((waves[j] for j in range(i + 1, len(kinds)) if kinds[j] != "fold"), waves[i])
+                out.append(dict(index=i, phi_L=self.table["phi_L"][i], stretch=self.table["stretch"][i],
+                                torque=self.table["torque"][i], l0=self.table["l0"][i],
+                                waves_before=before, waves_after=after))
+        return out
+
+    @property
+    def branch_points(self) -> list[int]:
+        return [i for i, kd in enumerate(self.table["kind"]) if kd == "branch_point"]
+
+
+def default_settings(**changes) -> ContinuationSettings:
+    s = ContinuationSettings(ds=0.05, ds_min=1e-6, ds_max=0.4, p_min=-1.0, p_max=40.0, max_steps=2000,
+                             newton_tol=1e-10, newton_max_iter=8, max_angle=0.3)
+    for key, val in changes.items():
+        setattr(s, key, val)
+    return s
+
+
+def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 5, phi_max: float = 40.0,
+          phi_min: float = -1.0, stretch_max: float | None = None, min_alignment: float = 0.05,
+          max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.05, ds_max: float = 0.4,
+          forced: Sequence[float] = (), start: tuple | None = None, out: str | None = None,
+          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
+    """Trace the branch of the twisted heavy rod in ``phi_L`` from ``phi_L = 0`` (or ``start``).
+
+    Stops at ``phi_max``/``phi_min``, at ``stretch_max``, where ``min d3.K3``
+    falls to ``min_alignment`` (the validity guard of the Eulerian
+    description), where the discretisation defect exceeds ``max_defect``
+    (the mesh no longer resolves the shape: raise ``N``), after ``max_steps``,
+    or when the step size collapses; each guard is located exactly and
+    ``branch.stop_reason`` says which. ``start = (x, phi_L, tangent or None)``
+    restarts from a stored point. ``out``: branch file written as the trace goes.
+    """
+    rod = rod or RodParameters()
+    _check_finite(gamma=gamma, phi_max=phi_max, phi_min=phi_min, min_alignment=min_alignment, ds=ds,
+                  ds_max=ds_max, max_defect=max_defect)
+    if not 0 <= min_alignment < 1:
+        raise ValueError("min_alignment must be in [0, 1)")
+    if max_defect <= 0:
+        raise ValueError("max_defect must be positive")
+    if stretch_max is not None:
+        _check_finite(stretch_max=stretch_max)
+    sysm = RodSystem(rod, gamma, N, k)
+    if settings is None:
+        settings = default_settings(ds=ds, ds_max=ds_max, p_min=phi_min, p_max=phi_max, max_steps=max_steps,
+                                    forced=tuple(forced))
+    settings.ds_min = min(settings.ds_min, settings.ds * 1e-3)
+    settings.validate()
+    branch = Branch(gamma=float(gamma), rod=rod, N=N, k=k)
+    events = [Event(f"validity guard: min d3.K3 reached min_alignment = {min_alignment:g}",
+                    lambda q: q.data["min_alignment"] - min_alignment, stop=True),
+              Event(f"accuracy guard: discretisation defect reached max_defect = {max_defect:g} "
+                    f"(the mesh no longer resolves the shape; raise N)",
+                    lambda q: max_defect - q.data["defect"], stop=True)]
+    if stretch_max is not None:
+        events.append(Event(f"stretch_max = {stretch_max:g} reached", lambda q: stretch_max - q.data["stretch"], stop=True))
+    if start is None:
+        x0 = sysm.model.initial_guess(sysm.disc, sysm.base[1])
+        p0, t0 = 0.0, None
+    else:
+        x0, p0, t0 = start
+        if np.asarray(x0).size != sysm.disc.size:
+            raise ValueError("the start point does not fit this mesh (N, k)")
+        if t0 is not None:
+            t0 = (np.asarray(t0[:-1], float), float(t0[-1]))
+    writer = None
+    if out is not None:
+        from .branchfile import BranchWriter
+        meta = dict(gamma=float(gamma), w=rod.w, EI=rod.EI, GJ=rod.GJ, EA=rod.EA, L=rod.L, N=int(N), k=int(k),
+                    param="phi_L", weight_direction=np.asarray(rod.weight_direction),
+                    min_alignment_guard=min_alignment, max_defect=max_defect)
+        writer = BranchWriter(out, meta, sysm.disc.size, sysm.disc.breakpoints)
+    recorder = _Recorder(branch, writer)
+    tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=events, tangent0=t0)
+    t_start = time.perf_counter()
+    try:
+        for pt in tracker:
+            recorder.add(pt)
+            if callback is not None:
+                callback(pt)
+        reason = tracker.stop_reason
+    except StopContinuation as exc:
+        reason = str(exc)
+    except KeyboardInterrupt:
+        reason = "interrupted"
+        raise
+    except BaseException as exc:
+        reason = f"failed: {type(exc).__name__}: {exc}"
+        raise
+    finally:
+        branch.stop_reason = reason if "reason" in locals() else "interrupted"
+        branch.steps = tracker.steps
+        branch.newton_iterations = tracker.newton_iterations
+        branch.elapsed = time.perf_counter() - t_start
+        recorder.close(branch.stop_reason)
+    return branch
+
+
+class _Recorder:
+    """Adds points to the Branch and, if any, the branch file; a fold's table row
+    is completed (waves after it) when the next non-fold point arrives."""
+
+    def __init__(self, branch: Branch, writer):
+        self.branch, self.writer = branch, writer
+        self.pending: list[int] = []
+
+    def add(self, pt: Point) -> None:
+        b = self.branch
+        b.add(pt)
+        i = len(b) - 1
+        if self.writer is not None:
+            self.writer.add(pt.data | {"arclength": pt.arclength}, pt.kind, pt.x, np.append(pt.tx, pt.tp))
+        if pt.kind == "fold":
+            self.pending.append(i)
+        else:
+            self._flush_folds()
+        if pt.kind == "branch_point" and self.writer is not None:
+            self.writer.add_branch_point(i, pt.data)
+
+    def _flush_folds(self) -> None:
+        if self.writer is not None:
+            by_index = {f["index"]: f for f in self.branch.folds}
+            for i in self.pending:
+                self.writer.add_fold(by_index[i])
+        self.pending = []
+
+    def close(self, reason: str) -> None:
+        self._flush_folds()
+        if self.writer is not None:
+            self.writer.close(reason)

@@ -1,0 +1,368 @@
+"""The Eulerian extensible rod (Huynen, Detournay & Denoël) as a collocation problem.
+
+The rod is described as a perturbation of a reference curve ``R(S)`` with
+frame ``{K1, K2, K3 = R'}``: centreline ``r = R + Delta1 K1 + Delta2 K2``,
+section turned by ``phi(S)`` about ``d3`` relative to the minimal-rotation
+image ``{a1, a2}`` of ``{K1, K2}`` (pole ``p = K3``). Unknown fields and
+orders: ``Delta1, Delta2`` (3), ``phi`` (2), the global components of the
+internal force ``F`` (1 each). With ``n = |r'|``, ``d3 = r'/n``,
+``alpha = 1 + F.d3/EA``, ``s' = n/alpha`` the equations (FORMULATION.md §2)::
+
+    F' + f s' = 0                                   (3, f = w g per unstressed length)
+    (EI u_perp' + m d3' + m' d3 + r' x F) . K_a = 0 (2, a = 1, 2)
+    m' / GJ = 0                                     (1, isotropic: constant torque)
+
+with ``u_perp = alpha (r' x r'')/n^3``, ``m = GJ J1 (phi' + tau_q)``,
+``J1 = alpha/n`` and the twist rate of the minimal-rotation frame
+``tau_q = -p.(d3 x d3')/(1 + p.d3)``. Everything is an explicit, analytic
+function of the local jet, so the complex step gives the exact Jacobian.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, asdict, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .collocation import BVProblem, Collocation
+
+PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
+FIELDS = ("Delta1", "Delta2", "phi", "F1", "F2", "F3")
+ORDERS = (3, 3, 2, 1, 1, 1)
+
+
+# --------------------------------------------------------------------------
+# Vector helpers on (3, npts) arrays (np.cross is slow on small arrays)
+# --------------------------------------------------------------------------
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a, b):
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _vdot(const, a):
+    """``c . a`` for a constant 3-vector ``c`` and field ``a`` (3, npts)."""
+    return const[0] * a[0] + const[1] * a[1] + const[2] * a[2]
+
+
+# --------------------------------------------------------------------------
+# Reference curves
+# --------------------------------------------------------------------------
+class ReferenceCurve:
+    """Interface of a unit-speed reference curve ``R(S)``, ``S in [0, L]``, with frame ``K1, K2, K3 = R'``.
+
+    ``centreline_jets(S, D1, D2)`` returns ``r, r', r'', r'''`` (each ``(3, npts)``)
+    for ``r = R + D1 K1 + D2 K2`` given the jets ``D1, D2`` (``(4, npts)``:
+    value and three derivatives). ``frame(S)`` returns ``K1, K2, K3``
+    (each ``(3, npts)``). A curved conduit axis implements both; the rod
+    model then also needs the twist of the pole ``K3(S)`` (not yet written,
+    so the model accepts only curves with ``constant_frame`` True).
+    """
+
+    length: float
+    constant_frame: bool = False
+
+    def centreline_jets(self, S, D1, D2):  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def frame(self, S):  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class StraightReference(ReferenceCurve):
+    """``R(S) = origin + S K3`` with constant frame (default ``K1 = e2, K2 = e3, K3 = e1``)."""
+
+    constant_frame = True
+
+    def __init__(self, length: float = 1.0, K1=(0.0, 1.0, 0.0), K2=(0.0, 0.0, 1.0), origin=(0.0, 0.0, 0.0)):
+        if not (np.isfinite(length) and length > 0):
+            raise ValueError(f"reference length L must be positive, got {length}")
+        self.length = float(length)
+        self.K1 = np.asarray(K1, float)
+        self.K2 = np.asarray(K2, float)
+        self.K3 = np.cross(self.K1, self.K2)
+        if not np.allclose([self.K1 @ self.K1, self.K2 @ self.K2, self.K1 @ self.K2], [1, 1, 0], atol=1e-14):
+            raise ValueError("K1, K2 must be orthonormal")
+        self.origin = np.asarray(origin, float)
+
+    def centreline_jets(self, S, D1, D2):
+        K1, K2, K3 = self.K1[:, None], self.K2[:, None], self.K3[:, None]
+        r = self.origin[:, None] + K3 * S + K1 * D1[0] + K2 * D2[0]
+        r1 = K3 + K1 * D1[1] + K2 * D2[1]
+        r2 = K1 * D1[2] + K2 * D2[2]
+        r3 = K1 * D1[3] + K2 * D2[3]
+        return r, r1, r2, r3
+
+    def frame(self, S):
+        n = np.size(S)
+        return tuple(np.repeat(K[:, None], n, axis=1) for K in (self.K1, self.K2, self.K3))
+
+
+# --------------------------------------------------------------------------
+# Rod parameters
+# --------------------------------------------------------------------------
+@dataclass
+class RodParameters:
+    """Stiffnesses, weight and span of a rod (paper values by default).
+
+    ``EI`` bending, ``GJ`` torsional, ``EA`` axial stiffness; ``w`` weight per
+    unit unstressed length (may be 0), acting along ``weight_direction``
+    (default ``-e3``: normal to the straight reference along ``e1``);
+    ``L`` the span (length of the reference curve).
+    """
+
+    EI: float = 1.0
+    GJ: float = 0.75
+    EA: float = 255.0
+    w: float = 10.0
+    L: float = 1.0
+    weight_direction: tuple = (0.0, 0.0, -1.0)
+
+    def __post_init__(self):
+        for name in ("EI", "GJ", "EA", "L"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+            setattr(self, name, float(v))
+        if not isinstance(self.w, (int, float, np.floating, np.integer)) or not math.isfinite(self.w) or self.w < 0:
+            raise ValueError(f"w must be a non-negative number, got {self.w!r}")
+        self.w = float(self.w)
+        g = np.asarray(self.weight_direction, float)
+        if g.shape != (3,) or not np.isfinite(g).all() or np.linalg.norm(g) == 0:
+            raise ValueError("weight_direction must be a non-zero 3-vector")
+        self.weight_direction = tuple(g / np.linalg.norm(g))
+
+    def tension(self, gamma: float) -> float:
+        """``T = Gamma w L``."""
+        return float(gamma) * self.w * self.L
+
+    def gamma(self, T: float) -> float:
+        return float(T) / (self.w * self.L) if self.w > 0 else float("nan")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+# --------------------------------------------------------------------------
+# The model
+# --------------------------------------------------------------------------
+class EulerianRod:
+    """The canonical problem as a :class:`BVProblem`: clamped at both ends,
+    ``phi(0) = 0``, ``phi(L) = phi_L``, axial force ``F . K3 = T`` at ``S = L``.
+
+    Parameters vector ``p = (phi_L, T, w, EI, GJ, EA)``.
+    """
+
+    def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None):
+        self.rod = rod or RodParameters()
+        self.curve = curve or StraightReference(self.rod.L)
+        if not self.curve.constant_frame:
+            raise NotImplementedError("only reference curves with a constant frame are implemented")
+        if abs(self.curve.length - self.rod.L) > 1e-14 * self.rod.L:
+            raise ValueError("the reference curve length must equal L")
+        self.pole = self.curve.K3
+        self.K1, self.K2 = self.curve.K1, self.curve.K2
+        self.g = np.asarray(self.rod.weight_direction, float)
+        self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
+                                 interval=(0.0, self.rod.L), params=PARAMS, names=FIELDS)
+
+    def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
+        r = self.rod
+        d = dict(phi_L=phi_L, T=T, w=r.w, EI=r.EI, GJ=r.GJ, EA=r.EA)
+        d.update(changes)
+        return np.array([d[n] for n in PARAMS], float)
+
+    # ---- kinematics shared by residual and outputs ----------------------------
+    def _kinematics(self, S, z):
+        r, r1, r2, r3 = self.curve.centreline_jets(S, z[0:4], z[4:8])
+        n2 = _dot(r1, r1)
+        n = np.sqrt(n2)
+        d3 = r1 / n
+        return r, r1, r2, r3, n2, n, d3
+
+    def residual(self, S, z, p):
+        """Pointwise residual ``(6, npts)`` of the Eulerian equations."""
+        phi_L, T, w, EI, GJ, EA = p
+        r, r1, r2, r3, n2, n, d3 = self._kinematics(S, z)
+        F = z[[11, 13, 15]]
+        Fp = z[[12, 14, 16]]
+        phi1, phi2 = z[9], z[10]
+        c = _dot(r1, r2)
+        d3r2 = _dot(d3, r2)
+        e = r2 - d3 * d3r2
+        d3p = e / n
+        n3 = n2 * n
+        d3pp = (r3 - d3p * d3r2 - d3 * (_dot(d3p, r2) + _dot(d3, r3))) / n - e * (c / n3)
+        alpha = 1.0 + _dot(F, d3) / EA
+        alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
+        bend = _cross(r1, r2)
+        uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
+        J1 = alpha / n
+        J1p = alphap / n - alpha * c / n3
+        P = self.pole
+        pd = 1.0 + _vdot(P, d3)
+        pxd = _vdot(P, _cross(d3, d3p))
+        tau = -pxd / pd
+        taup = -_vdot(P, _cross(d3, d3pp)) / pd + pxd * _vdot(P, d3p) / pd**2
+        twist = phi1 + tau
+        m = GJ * J1 * twist
+        mp = GJ * (J1p * twist + J1 * (phi2 + taup))
+        EF = Fp + (w * n / alpha) * self.g[:, None]
+        EM = EI * uperp_p + m * d3p + mp * d3 + _cross(r1, F)
+        return np.stack([EF[0], EF[1], EF[2], _vdot(self.K1, EM), _vdot(self.K2, EM), mp / GJ])
+
+    def bc(self, za, zb, p):
+        """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(L) = phi_L``, tension."""
+        phi_L, T = p[0], p[1]
+        K3 = self.pole
+        axial = K3[0] * zb[11] + K3[1] * zb[13] + K3[2] * zb[15]
+        return np.stack([za[0], za[1], za[4], za[5], zb[0], zb[1], zb[4], zb[5],
+                         za[8], zb[8] - phi_L, axial - T])
+
+    def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
+        if breakpoints is None:
+            if not (isinstance(N, (int, np.integer)) and N >= 1):
+                raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N!r}")
+            breakpoints = int(N)
+        return Collocation(self.problem, breakpoints, k)
+
+    def initial_guess(self, disc: Collocation, T: float) -> np.ndarray:
+        """Straight untwisted rod; ``F`` carries ``T`` along the axis and the weight of a rod of length ``L``.
+
+        ``F' = -w g`` split into its transverse part (shared equally by the two
+        clamps) and its axial part (``F . K3 = T`` at ``S = L``).
+        """
+        L, w, g, K3 = self.rod.L, self.rod.w, self.g, self.pole
+        ga = float(g @ K3)
+        gt = g - ga * K3
+        comps = [lambda S: 0 * S] * 3
+        comps += [lambda S, a=a: T * K3[a] - w * gt[a] * (S - 0.5 * L) - w * ga * K3[a] * (S - L) for a in range(3)]
+        return disc.project(comps)
+
+    # ---- derived outputs -------------------------------------------------
+    def outputs(self, disc: Collocation, x: np.ndarray, p: np.ndarray, samples: int = 8) -> dict:
+        """``stretch``, ``torque``, ``l``, ``l0``, ``min_alignment``, ``helical_waves`` of a solution."""
+        out = getattr(disc, "_rod_outputs", None)
+        if out is None or out.model is not self or out.samples != samples:
+            out = disc._rod_outputs = _Outputs(self, disc, samples)
+        return out(x, p)
+
+    def torque_profile(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """``m = GJ J1 (phi' + tau_q)`` at the collocation points."""
+        return self._axial_quantities(disc.S, disc.jets(x), p)[0]
+
+    def _axial_quantities(self, S, z, p):
+        phi_L, T, w, EI, GJ, EA = p
+        r, r1, r2, r3, n2, n, d3 = self._kinematics(S, z)
+        F = z[[11, 13, 15]]
+        d3p = (r2 - d3 * _dot(d3, r2)) / n
+        alpha = 1.0 + _dot(F, d3) / EA
+        P = self.pole
+        tau = -_vdot(P, _cross(d3, d3p)) / (1.0 + _vdot(P, d3))
+        m = GJ * alpha / n * (z[9] + tau)
+        return m, alpha, n, d3
+
+    def centreline(self, disc: Collocation, x: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """``r(S)``, ``(3, len(S))``."""
+        S = np.atleast_1d(np.asarray(S, float))
+        D1 = np.stack([disc.evaluate(x, S, 0, nu) for nu in range(4)])
+        D2 = np.stack([disc.evaluate(x, S, 1, nu) for nu in range(4)])
+        return self.curve.centreline_jets(S, D1, D2)[0]
+
+    def directors(self, disc: Collocation, x: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """``d1, d2, d3`` at ``S``: array ``(3, 3, len(S))`` (director index first)."""
+        S = np.atleast_1d(np.asarray(S, float))
+        D1 = np.stack([disc.evaluate(x, S, 0, nu) for nu in range(4)])
+        D2 = np.stack([disc.evaluate(x, S, 1, nu) for nu in range(4)])
+        phi = disc.evaluate(x, S, 2, 0)
+        _, r1, *_ = self.curve.centreline_jets(S, D1, D2)
+        d3 = r1 / np.sqrt(_dot(r1, r1))
+        P = self.pole[:, None]
+        kx = _cross(np.broadcast_to(P, d3.shape), d3)  # sin(theta) * axis
+        cth = _dot(np.broadcast_to(P, d3.shape), d3)
+
+        def rotate(v):  # minimal rotation taking the pole onto d3 (Rodrigues)
+            v = np.broadcast_to(v[:, None], d3.shape)
+            return cth * v + _cross(kx, v) + kx * (_dot(kx, v) / (1.0 + cth))
+
+        a1, a2 = rotate(self.K1), rotate(self.K2)
+        c, s = np.cos(phi), np.sin(phi)
+        return np.stack([c * a1 + s * a2, -s * a1 + c * a2, d3])
+
+
+class _Outputs:
+    """Evaluation matrices for the derived outputs of one discretisation (built once)."""
+
+    def __init__(self, model: EulerianRod, disc: Collocation, samples: int):
+        self.model, self.disc, self.samples = model, disc, samples
+        b = disc.breakpoints
+        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
+        S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
+        self.S = S
+        # Between the collocation points the residual is not forced to zero: its size
+        # there (the defect) estimates the discretisation error. Check points: midpoints
+        # between consecutive Gauss points and breakpoints.
+        nodes = np.concatenate([[-1.0], np.polynomial.legendre.leggauss(disc.k)[0], [1.0]])
+        mids = 0.5 * (nodes[1:] + nodes[:-1])
+        self.S_check = (b[:-1, None] + 0.5 * np.diff(b)[:, None] * (mids[None, :] + 1.0)).ravel()
+        self.E_check = sp.vstack([disc.evaluation_matrix(self.S_check, i, nu)
+                                  for i, m in enumerate(disc.problem.orders) for nu in range(m + 1)]).tocsr()
+        self.E1 = disc.evaluation_matrix(S, 0, 1)
+        self.E2 = disc.evaluation_matrix(S, 1, 1)
+        self.F1 = disc.evaluation_matrix(S, 0, 0)
+        self.F2 = disc.evaluation_matrix(S, 1, 0)
+
+    def __call__(self, x, p):
+        model, disc = self.model, self.disc
+        z = disc.jets(x)
+        m, alpha, n, _ = model._axial_quantities(disc.S, z, p)
+        L = model.rod.L
+        l = disc.integrate(n)
+        l0 = disc.integrate(n / alpha)
+        # alignment d3 . K3 on a fine grid (straight reference: K3 constant)
+        d1p, d2p = self.E1 @ x, self.E2 @ x
+        align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
+        D1, D2 = self.F1 @ x, self.F2 @ x
+        return dict(stretch=(l - L) / L, torque=float(np.mean(m)), l=l, l0=l0,
+                    defect=self.defect(x, p, z),
+                    min_alignment=float(np.min(align)),
+                    helical_waves=helical_waves(self.S, D1, D2, d1p, d2p),
+                    torque_spread=float(np.ptp(m)))
+
+
+    def defect(self, x, p, z) -> float:
+        """Max residual between collocation points, each equation relative to its scale.
+
+        Scales: force equations ``max(w, |F|/L)``, moment equations
+        ``max(|F|, EI/L^2)``, torque equation ``max(|phi_L|, 1)/L^2``.
+        """
+        model = self.model
+        zc = (self.E_check @ x).reshape(z.shape[0], -1)
+        G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
+        L, w, EI = model.rod.L, p[2], p[3]
+        Fmax = float(np.sqrt((z[[11, 13, 15]] ** 2).sum(axis=0)).max())
+        scale = np.array([max(w, Fmax / L)] * 3 + [max(Fmax, EI / L**2)] * 2 + [max(abs(p[0]), 1.0) / L**2])
+        return float(np.max(G / scale))
+
+
+def helical_waves(S, D1, D2, D1p, D2p) -> int:
+    """Number of helical waves: complete turns of the transverse slope ``(Delta1', Delta2')``.
+
+    A helix about any axis parallel to the reference turns its transverse slope
+    vector once per wave, whatever its offset (a sag). Counted as
+    ``floor(turns + 1/4)``, ``turns = |total unwrapped angle of (Delta1', Delta2')| / 2 pi``
+    over the part of the span where the slope is not negligible (the clamps force
+    it to zero at the ends, where its direction is undefined): a wave counts
+    once the slope has made three quarters of its turn. The planar sag turns
+    it by half a turn only (down, then up) and counts 0.
+    """
+    mag = np.hypot(D1p, D2p)
+    keep = mag > 1e-3 * max(float(mag.max()), 1e-300)
+    if keep.sum() < 2 or mag.max() < 1e-12:
+        return 0
+    ang = np.unwrap(np.arctan2(D2p[keep], D1p[keep]))
+    return int(np.floor(abs(ang[-1] - ang[0]) / (2 * np.pi) + 0.25))
