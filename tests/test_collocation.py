@@ -84,8 +84,6 @@ def solve_linear(N, k):
     c = Collocation(LINEAR, N, k)
     r = c.newton(np.zeros(c.size), NOP)
     assert r.converged, r.message
-    # a linear problem: one Newton step solves it, the second confirms
-    assert r.iterations <= 2
     return c, r.x
 
 
@@ -509,13 +507,9 @@ def test_newton_solve_reports_singular_jacobian_and_iteration_limit():
     assert r.converged and abs(r.x[0] - np.sqrt(2)) < 1e-15 * 4 and r.iterations <= 7
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG: newton takes F from the real part of the complex-step evaluation, which silently "
-    "continues log/sqrt off their real domain (Re log(-1+ih) = 0, Im/h = pi*1e30). The huge "
-    "bogus Jacobian makes the step tiny, and the step-only convergence test reports "
-    "converged=True although Collocation.residual is NaN there (and residual_norm is O(1))."))
-@pytest.mark.parametrize("which", ["log", "sqrt"])
-def test_newton_never_reports_convergence_where_the_residual_is_not_finite(which):
+def _off_domain_problem(which):
+    """u'' = log(u) or sqrt(u), u(0) = -1, u(1) = -2: no real solution near u < 0, where the
+    real-valued residual is NaN."""
     def residual(S, z, p):
         u, du, ddu = z
         return np.array([ddu - (np.log(u) if which == "log" else np.sqrt(u))])
@@ -524,13 +518,38 @@ def test_newton_never_reports_convergence_where_the_residual_is_not_finite(which
         return np.array([za[0] + 1.0, zb[0] + 2.0])
 
     c = Collocation(BVProblem([2], residual, bc, (0.0, 1.0)), 4, 3)
-    x0 = c.project([lambda S: -1.0 - S])  # u < 0: outside the real domain of log / sqrt
+    return c, c.project([lambda S: -1.0 - S])  # u < 0 everywhere
+
+
+@pytest.mark.parametrize("which", ["log", "sqrt"])
+def test_newton_never_reports_convergence_where_the_residual_is_not_finite(which):
+    c, x0 = _off_domain_problem(which)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        r = c.newton(x0, NOP)
+        assert not np.all(np.isfinite(c.residual(x0, NOP)))  # real residual is NaN here
+        r = c.newton(x0, NOP, max_iter=8)
         F = c.residual(r.x, NOP)
-    assert not np.all(np.isfinite(F))  # the real residual is NaN: there is no solution here
-    assert not r.converged, (r.message, r.residual_norm)
+    _check_result(r)
+    assert not (r.converged and not np.all(np.isfinite(F))), (r.message, r.residual_norm)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "linearise() returns F = Re G(z + i h e_j), which silently continues log/sqrt off their "
+    "real domain (Re log(-1 + 1e-30 i) = 0 while np.log(-1.) is NaN), so F from linearise "
+    "differs from residual() (finite vs NaN), the 'Jacobian' has ~1e32 entries "
+    "(Im log / h = pi / 1e-30), and Newton never reports 'residual is not finite': it runs all "
+    "max_iter iterations and reports 'no convergence' with a finite, even tiny (sqrt: 6e-13), "
+    "residual_norm."))
+@pytest.mark.parametrize("which", ["log", "sqrt"])
+def test_linearise_residual_is_the_real_residual_off_the_real_domain(which):
+    c, x0 = _off_domain_problem(which)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        F_res = c.residual(x0, NOP)
+        F_lin = c.linearise(x0, NOP)[0]
+        r = c.newton(x0, NOP, max_iter=8)
+    assert not r.converged and "finite" in r.message, (r.message, r.residual_norm)
+    np.testing.assert_array_equal(F_lin, F_res)  # NaN positions must agree too
 
 
 # ==========================================================================
@@ -601,7 +620,7 @@ def test_param_index():
 # ==========================================================================
 # 8. Property tests
 # ==========================================================================
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
 @given(k=st.integers(1, 7), m=st.integers(1, 4), N=st.integers(1, 8),
        seed=st.integers(0, 2 ** 32 - 1), uniform=st.booleans())
 def test_projection_reproduces_polynomials_of_degree_below_k_plus_m(k, m, N, seed, uniform):
@@ -641,13 +660,13 @@ def test_projection_does_not_reproduce_degree_k_plus_m(k, m):
     assert np.max(np.abs(s.spline(s.interpolant_coefficients(f))(S) - f(S))) > 0.5
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(orders=st.lists(st.integers(1, 3), min_size=1, max_size=3), k=st.integers(1, 7),
-       N=st.integers(1, 6), seed=st.integers(0, 2 ** 32 - 1))
-def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orders, k, N, seed):
-    """Linear system  u_i^(m_i) + sum_{j, l < m_j} A_ijl(S) u_j^(l) = f_i  with exact solution
-    u_i* a polynomial of degree k + m_i - 1: u_i* lies in the trial space, so the discrete
-    solution (unique for a nonsingular collocation matrix) is u* up to rounding."""
+def polynomial_problem(orders, k, N, seed):
+    """Linear system  u_i^(m_i) + sum_{j, l < m_j} A_ijl(S) u_j^(l) = f_i  on random
+    non-uniform breakpoints, with exact solution u_i* a random polynomial of degree
+    k + m_i - 1 (Chebyshev coefficients in [-1, 1] on [a, a+L]).  Conditions for field i:
+    u_i^(l)(a) = u_i*^(l)(a) for l < m_i - 1 and u_i^(m_i-1)(b) = u_i*^(m_i-1)(b).
+    The lower-order coupling is small (|A| <= 0.2, L <= 1.5): the problem is a perturbation
+    of the uniquely solvable decoupled one u_i^(m_i) = f_i, hence well posed."""
     rng = np.random.default_rng(seed)
     n = len(orders)
     a, L = rng.uniform(-1, 1), rng.uniform(0.5, 1.5)
@@ -658,8 +677,6 @@ def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orde
     def exact(i, S, nu=0):
         return C.chebval(to_t(S), C.chebder(cheb[i], nu) if nu else cheb[i]) * (2 / L) ** nu
 
-    # small lower-order coupling, coefficients linear in S: the continuous problem is a
-    # perturbation of u_i^(m_i) = f_i with initial-value-type conditions, hence well posed
     A = 0.2 * rng.uniform(-1, 1, (n, n, 3, 2))
     rows = np.concatenate([[0], np.cumsum([m + 1 for m in orders])])
 
@@ -680,7 +697,6 @@ def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orde
         return np.array([z[rows[i] + m] + lo[i] - (exact(i, S, m) + lo_ex[i])
                          for i, m in enumerate(orders)])
 
-    # field i: u_i^(l)(a) for l < m_i - 1 and u_i^(m_i - 1) at the right end
     bc_list = [(i, l, 0 if l < m - 1 else 1) for i, m in enumerate(orders) for l in range(m)]
     ends = (a, a + L)
 
@@ -688,16 +704,57 @@ def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orde
         return np.array([(za, zb)[e][rows[i] + l] - exact(i, ends[e], l) for i, l, e in bc_list])
 
     pb = BVProblem(orders, residual, bc, (a, a + L))
+    return pb, breakpoints, exact, cheb, rng
+
+
+@settings(max_examples=40, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
+@given(orders=st.lists(st.integers(1, 3), min_size=1, max_size=3), k=st.integers(1, 7),
+       N=st.integers(1, 6), seed=st.integers(0, 2 ** 32 - 1))
+def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orders, k, N, seed):
+    """u_i* lies in the trial space P_{k+m_i} ∩ C^{m_i-1}, so it satisfies every collocation
+    equation and bc: the discrete solution (unique for a nonsingular collocation matrix)
+    is u* up to rounding.  The problem is linear, so the discrete solution is one linear
+    solve from any x0 (Newton's stopping logic is tested separately)."""
+    pb, breakpoints, exact, cheb, rng = polynomial_problem(orders, k, N, seed)
+    a, b = breakpoints[0], breakpoints[-1]
+    L = b - a
     c = Collocation(pb, breakpoints, k)
-    assert c.size == N * k * n + sum(orders)
-    r = c.newton(np.zeros(c.size), NOP)
-    assert r.converged, r.message
-    S = np.concatenate([breakpoints, rng.uniform(a, a + L, 40)])
+    assert c.size == N * k * len(orders) + sum(orders)
+    x0 = np.zeros(c.size)
+    F0, J, _ = c.linearise(x0, NOP)
+    x = x0 + sp.linalg.spsolve(J, -F0)
+    S = np.concatenate([breakpoints, rng.uniform(a, b, 40)])
     hmin = np.min(np.diff(breakpoints))
     for i, m in enumerate(orders):
         for nu in range(m + 1):
             ex = exact(i, S, nu)
-            scale = np.sum(np.abs(cheb[i])) * (k + m) ** (2 * nu) * (2 / L) ** nu  # Markov
-            err = np.max(np.abs(c.evaluate(r.x, S, i, nu) - ex))
-            # rounding: cond(J) ~ h^-max(m) amplified by h^-nu in the derivatives
+            scale = np.sum(np.abs(cheb[i])) * (k + m) ** (2 * nu) * (2 / L) ** nu  # Markov bound
+            err = np.max(np.abs(c.evaluate(x, S, i, nu) - ex))
+            # rounding: cond(J) ~ h^-max(m), amplified by h^-nu in the derivatives
             assert err <= 1e-9 * scale * (L / hmin) ** nu, (i, nu, err)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "BUG in newton_solve: once the residual is at its rounding floor (here ~1e-11, since |F(x0)| "
+    "~1e4), the acceptance tests 'fdone <= fnorm*(1+1e-6) + 1e-13' (convergence) and "
+    "'ft <= fnorm*(1+1e-6) + 1e-13' (line search) compare rounding noise with rounding noise "
+    "with an absolute floor 1e-13 that is not scaled to |F|; a tiny step (<= tol(1+|x|)) is "
+    "then rejected, the line search halves it 6 times and returns converged=False, 'line search "
+    "failed', on linear problems that are solved exactly after one step (~15-20% of random cases); "
+    "on the well-scaled LINEAR problem it costs an extra iteration (3 instead of 2)."))
+def test_newton_converges_in_two_iterations_on_linear_problems():
+    failures = []
+    for seed in range(30):
+        pb, breakpoints, exact, cheb, rng = polynomial_problem([3, 3], 5, 4, seed)
+        c = Collocation(pb, breakpoints, 5)
+        r = c.newton(np.zeros(c.size), NOP)
+        # linear: the first step lands on the solution, the second (|dx| ~ rounding
+        # <= tol (1+|x|)) confirms it -- the documented convergence criterion
+        if not (r.converged and r.iterations <= 2):
+            failures.append((seed, r.message, r.iterations, r.residual_norm, r.step_norm))
+    for N, k in [(8, 3), (16, 4), (32, 2)]:
+        c = Collocation(LINEAR, N, k)
+        r = c.newton(np.zeros(c.size), NOP)
+        if not (r.converged and r.iterations <= 2):
+            failures.append(((N, k), r.message, r.iterations, r.residual_norm, r.step_norm))
+    assert not failures, failures

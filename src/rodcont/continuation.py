@@ -294,10 +294,15 @@ class Tracker:
             m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
             if not (min(a, b) < m < max(a, b)):
                 m = 0.5 * (a + b)
-            c = self._correct(base, m)
-            if c is None:
-                return best
-            pt = self._make_point(c[0], c[1], base, m, c[2], kind=kind)
+            pt = None
+            for nudge in (0.0, 1e-9, -1e-9):  # exactly on a branch point the bordered matrix is singular
+                mm = m + nudge * ds_hi
+                c = self._correct(base, mm)
+                if c is not None:
+                    pt = self._make_point(c[0], c[1], base, mm, c[2], kind=kind)
+                if pt is not None:
+                    m = mm
+                    break
             if pt is None:
                 return best
             fm = g(pt)

@@ -358,7 +358,8 @@ def helical_waves(S, D1, D2, D1p, D2p) -> int:
     over the part of the span where the slope is not negligible (the clamps force
     it to zero at the ends, where its direction is undefined): a wave counts
     once the slope has made three quarters of its turn. The planar sag turns
-    it by half a turn only (down, then up) and counts 0.
+    it by half a turn only (down, then up) and counts 0; a helix whose slope is
+    smaller than that of the sag it rides on does not circle and is not counted.
     """
     mag = np.hypot(D1p, D2p)
     keep = mag > 1e-3 * max(float(mag.max()), 1e-300)

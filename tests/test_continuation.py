@@ -1,0 +1,130 @@
+"""The generic tracker on problems with known answers (no rod involved)."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.optimize import brentq
+
+from rodcont.collocation import BVProblem, Collocation
+from rodcont.continuation import ContinuationSettings, Event, Tracker, bordered, continuation, det_sign_log, factorise
+
+BRATU_FOLD = 3.513830719125  # lambda* of u'' + lambda e^u = 0, u(0) = u(1) = 0
+
+
+class Bratu:
+    """Bratu's problem on the collocation core, continued in lambda."""
+
+    def __init__(self, N=10, k=5):
+        pb = BVProblem(orders=[2], residual=lambda S, z, p: z[2] + p[0] * np.exp(z[0]),
+                       bc=lambda za, zb, p: np.stack([za[0], zb[0]]), interval=(0.0, 1.0), params=["lam"])
+        self.disc = Collocation(pb, N, k)
+
+    def residual(self, x, lam):
+        return self.disc.residual(x, [lam])
+
+    def tangent(self, x, lam):
+        _, J, (Fp,) = self.disc.linearise(x, [lam], [0])
+        return J, Fp
+
+    def u_mid(self, x, lam):
+        return {"u_mid": float(self.disc.evaluate(x, 0.5, 0))}
+
+
+def bratu_exact_fold():
+    """lambda* from the closed form: lambda = 8 (t / cosh t)^2 maximal where t tanh t = 1."""
+    t = brentq(lambda t: t * math.tanh(t) - 1.0, 0.5, 2.0)
+    return 8 * (t / math.cosh(t)) ** 2
+
+
+def test_bratu_closed_form_matches_published_value():
+    assert bratu_exact_fold() == pytest.approx(BRATU_FOLD, abs=1e-12)
+
+
+def test_bratu_fold_located():
+    pb = Bratu()
+    s = ContinuationSettings(ds=0.1, ds_max=0.5, p_max=3.6, p_min=-0.1, max_steps=200)
+    pts, reason = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid,
+                               events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True)])
+    folds = [q for q in pts if q.kind == "fold"]
+    assert len(folds) == 1
+    assert folds[0].p == pytest.approx(bratu_exact_fold(), abs=1e-9)
+    assert abs(folds[0].tp) < 1e-10
+    # the upper branch is reached: u(1/2) grows past the fold and the event stops the trace there
+    assert reason == "u_mid = 4"
+    assert pts[-1].data["u_mid"] == pytest.approx(4.0, abs=1e-9)
+    # the arclength increases along the branch and p turns exactly once
+    arc = np.array([q.arclength for q in pts if q.kind == "regular"])
+    assert np.all(np.diff(arc) > 0)
+
+
+def test_forced_points_and_bounds():
+    pb = Bratu()
+    s = ContinuationSettings(ds=0.3, ds_max=0.5, p_max=3.0, max_steps=100, forced=(0.5, 1.25, 2.0))
+    pts, reason = continuation(pb, np.zeros(pb.disc.size), 0.0, s)
+    forced = [q.p for q in pts if q.kind == "forced"]
+    assert forced == pytest.approx([0.5, 1.25, 2.0], abs=1e-12)
+    assert pts[-1].kind == "bound" and pts[-1].p == pytest.approx(3.0, abs=1e-12)
+    assert "p_max" in reason
+    # each forced point solves the problem at that parameter
+    for q in pts:
+        assert np.max(np.abs(pb.residual(q.x, q.p))) < 1e-9
+
+
+class Pitchfork:
+    """x^3 - p x = 0 (with a spectator y' s.t. y - p = 0): branch point at p = 0 on the trivial branch."""
+
+    def residual(self, x, p):
+        return np.array([x[0] ** 3 - p * x[0], x[1] - p])
+
+    def tangent(self, x, p):
+        J = sp.csc_matrix(np.array([[3 * x[0] ** 2 - p, 0.0], [0.0, 1.0]]))
+        return J, np.array([-x[0], -1.0])
+
+
+def test_branch_point_detected_and_located():
+    s = ContinuationSettings(ds=0.13, ds_max=0.2, p_min=-1.0, p_max=1.0, max_steps=100)
+    pts, reason = continuation(Pitchfork(), np.array([0.0, -1.0]), -1.0, s)
+    bps = [q for q in pts if q.kind == "branch_point"]
+    assert len(bps) == 1
+    assert abs(bps[0].p) < 1e-9
+    assert not [q for q in pts if q.kind == "fold"]
+
+
+def test_det_sign_from_sparse_lu():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        A = rng.standard_normal((7, 7))
+        sign, log = det_sign_log(factorise(sp.csc_matrix(A)))
+        d = np.linalg.det(A)
+        assert sign == np.sign(d)
+        assert log == pytest.approx(math.log(abs(d)), rel=1e-10)
+
+
+def test_bordered_matrix():
+    rng = np.random.default_rng(1)
+    J = sp.random(6, 6, density=0.5, random_state=2, format="csc") + sp.eye(6)
+    b, c, d = rng.standard_normal(6), rng.standard_normal(6), 0.7
+    A = bordered(J, b, c, d).toarray()
+    ref = np.block([[J.toarray(), b[:, None]], [c[None, :], np.array([[d]])]])
+    assert np.array_equal(A, ref)
+
+
+def test_step_size_collapse_is_a_stop_reason_not_an_exception():
+    class Nowhere:  # F = x^2 + 1 + p^2 has no real zero: the start fails
+        def residual(self, x, p):
+            return np.array([x[0] ** 2 + 1 + p * p])
+
+        def tangent(self, x, p):
+            return sp.csc_matrix([[2 * x[0]]]), np.array([2 * p])
+
+    pts, reason = continuation(Nowhere(), np.array([0.3]), 0.0, ContinuationSettings())
+    assert pts == [] and "no convergence at the starting point" in reason
+
+
+def test_settings_are_validated():
+    with pytest.raises(ValueError):
+        ContinuationSettings(ds=-1).validate()
+    with pytest.raises(ValueError):
+        ContinuationSettings(ds=1.0, ds_max=0.5).validate()
