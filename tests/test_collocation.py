@@ -180,8 +180,6 @@ def test_evaluate_derivatives_at_arbitrary_points_converge_at_theoretical_rates(
         # few % of the true max, i.e. well inside the 0.3 margin on the order
         assert np.all(q >= theory - 0.3), (key, q)
         assert q[-1] <= theory + 0.5, (key, q)
-    # absolute accuracy at N=32 consistent with C h^{k+m-j}, C ~ |u^{(k+m)}| / (k+m)!-ish:
-    assert errs[(0, 0)][-1] < 1e-8 and errs[(0, 2)][-1] < 1e-3
 
 
 def test_evaluate_at_interval_ends_is_finite_and_exact_for_bcs():
@@ -341,8 +339,9 @@ def test_assembled_jacobian_matches_central_differences(case):
         assert np.max(np.abs(fd)) > 0
 
 
-def test_jacobian_at_a_solution_is_consistent_with_newton_quadratic_convergence():
-    # Bratu lower branch: with an exact Jacobian, Newton from u = 0 converges in few steps
+def test_newton_with_the_assembled_jacobian_converges_fast_on_bratu():
+    # Bratu lower branch: with an exact Jacobian Newton from u = 0 converges quadratically
+    # (|u*| ~ 0.14, well inside the basin): a handful of iterations
     c = Collocation(BRATU, 8, 4)
     r = c.newton(np.zeros(c.size), np.array([1.0]))
     assert r.converged and r.iterations <= 6, r
@@ -401,7 +400,7 @@ def test_free_eigenvalue_converges_to_pi_squared():
     # eigenvalue error of Gauss collocation is superconvergent O(h^{2k}) = 16^-8 ~ 2e-10 * C
     assert abs(lam - np.pi ** 2) < 1e-10
     S = np.linspace(0, 1, 501)
-    # eigenfunction: uniform O(h^{k+2}) = 16^-6 ~ 6e-8 * |u^(6)|/pi... ~ 1e-10
+    # eigenfunction: uniform O(h^{k+2}) ~ |u^(6)| h^6 / (6! 2^6) = pi^4 * 16^-6 / 46080 ~ 1e-10
     assert np.max(np.abs(c.evaluate(r.x, S, 0) - np.sin(np.pi * S) / np.pi)) < 1e-9
     # full_params puts the solved value back into p
     assert c.full_params(r.x, np.array([0.0]))[0] == lam
@@ -533,13 +532,6 @@ def test_newton_never_reports_convergence_where_the_residual_is_not_finite(which
     assert not (r.converged and not np.all(np.isfinite(F))), (r.message, r.residual_norm)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "linearise() returns F = Re G(z + i h e_j), which silently continues log/sqrt off their "
-    "real domain (Re log(-1 + 1e-30 i) = 0 while np.log(-1.) is NaN), so F from linearise "
-    "differs from residual() (finite vs NaN), the 'Jacobian' has ~1e32 entries "
-    "(Im log / h = pi / 1e-30), and Newton never reports 'residual is not finite': it runs all "
-    "max_iter iterations and reports 'no convergence' with a finite, even tiny (sqrt: 6e-13), "
-    "residual_norm."))
 @pytest.mark.parametrize("which", ["log", "sqrt"])
 def test_linearise_residual_is_the_real_residual_off_the_real_domain(which):
     c, x0 = _off_domain_problem(which)
@@ -596,11 +588,6 @@ def test_bc_count_includes_free_parameters():
         Collocation(pb, 4, 3)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Missing validation: a residual returning the wrong number of equations is not detected; "
-    "Collocation.residual silently returns a vector of the right length built by indexing the "
-    "wrong-size vector with row_order (garbage), and linearise fails with an opaque matmul "
-    "dimension error."))
 def test_residual_with_wrong_number_of_equations_raises():
     def residual(S, z, p):
         return np.array([z[2], z[0], z[1]])  # 3 equations for 1 field
@@ -734,14 +721,6 @@ def test_collocation_reproduces_polynomial_solutions_of_mixed_order_systems(orde
             assert err <= 1e-9 * scale * (L / hmin) ** nu, (i, nu, err)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG in newton_solve: once the residual is at its rounding floor (here ~1e-11, since |F(x0)| "
-    "~1e4), the acceptance tests 'fdone <= fnorm*(1+1e-6) + 1e-13' (convergence) and "
-    "'ft <= fnorm*(1+1e-6) + 1e-13' (line search) compare rounding noise with rounding noise "
-    "with an absolute floor 1e-13 that is not scaled to |F|; a tiny step (<= tol(1+|x|)) is "
-    "then rejected, the line search halves it 6 times and returns converged=False, 'line search "
-    "failed', on linear problems that are solved exactly after one step (~15-20% of random cases); "
-    "on the well-scaled LINEAR problem it costs an extra iteration (3 instead of 2)."))
 def test_newton_converges_in_two_iterations_on_linear_problems():
     failures = []
     for seed in range(30):

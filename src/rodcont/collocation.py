@@ -174,7 +174,7 @@ class Collocation:
         b = np.asarray(breakpoints, dtype=float)
         if b.ndim != 1 or b.size < 2 or not np.all(np.isfinite(b)) or np.any(np.diff(b) <= 0):
             raise ValueError("breakpoints must be a strictly increasing sequence of at least 2 finite values")
-        if not (isinstance(k, (int, np.integer)) and 1 <= k <= 7):
+        if isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and 1 <= k <= 7):
             raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k!r}")
         self.problem = pb = problem
         self.breakpoints = b
@@ -280,13 +280,26 @@ class Collocation:
         self.nnz = M.nnz
 
     def _pointwise_jacobian(self, S, z, p, active):
-        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points."""
+        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points.
+
+        Copy 0 of the batch is unperturbed: a nonzero imaginary part there means
+        the residual left its real domain (log or sqrt of a negative number),
+        where the complex step would silently return finite values; ``G`` is
+        then NaN, as the real residual is.
+        """
         nz, npts, na = z.shape[0], z.shape[1], len(active)
-        Zc = np.tile(z.astype(complex), (1, max(na, 1)))
-        Zc.reshape(nz, max(na, 1), npts)[active, np.arange(na), :] += 1j * COMPLEX_STEP
-        Gc = np.asarray(self.problem.residual(np.tile(S, max(na, 1)), Zc, p)).reshape(-1, npts * max(na, 1))
-        n = Gc.shape[0]
-        return Gc.real[:, :npts], (Gc.imag / COMPLEX_STEP).reshape(n, max(na, 1), npts)[:, :na]
+        nb = na + 1
+        Zc = np.tile(z.astype(complex), (1, nb))
+        Zc.reshape(nz, nb, npts)[active, np.arange(1, nb), :] += 1j * COMPLEX_STEP
+        Gc = np.asarray(self.problem.residual(np.tile(S, nb), Zc, p))
+        n = self.problem.n_fields
+        if Gc.size != n * npts * nb:
+            raise ValueError(f"the residual must return {n} equations (one per field) at each point, "
+                             f"got an array of shape {Gc.shape}")
+        Gc = Gc.reshape(n, nb, npts)
+        G = Gc[:, 0, :].real.copy()
+        G[Gc[:, 0, :].imag != 0] = np.nan
+        return G, Gc[:, 1:, :].imag / COMPLEX_STEP
 
     def _bc_jet_jacobian(self, za, zb, p) -> np.ndarray:
         """``dg/d(za, zb)``, ``(n_bc, 2 jet_size)``; ``bc`` broadcasts over a trailing batch axis."""
@@ -315,7 +328,11 @@ class Collocation:
     def residual(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """All conditions (collocation and boundary), in along-the-span order."""
         pf = self.full_params(x, p)
-        G = np.asarray(self.problem.residual(self.S, self.jets(x), pf)).reshape(-1, self.npts)
+        G = np.asarray(self.problem.residual(self.S, self.jets(x), pf))
+        if G.size != self.problem.n_fields * self.npts:
+            raise ValueError(f"the residual must return {self.problem.n_fields} equations (one per field) "
+                             f"at each point, got an array of shape {G.shape}")
+        G = G.reshape(-1, self.npts)
         za, zb = self.end_jets(x)
         return np.concatenate([G.T.ravel(), np.atleast_1d(self.problem.bc(za, zb, pf))])[self.row_order]
 
@@ -423,6 +440,8 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
     x = np.array(x0, dtype=float)
     F, J = linearise(x)
     fnorm, step, prev = _norm(F), np.inf, np.inf
+    # residual changes below this are rounding: the size of the terms, not of their sum
+    floor = 1e-13 * (1.0 + (fnorm if np.isfinite(fnorm) else 0.0))
     for it in range(1, max_iter + 1):
         if not np.all(np.isfinite(F)):
             return NewtonResult(x, False, it - 1, fnorm, step, "residual is not finite")
@@ -439,11 +458,11 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
         done = step <= scale or (np.isfinite(prev) and step < 0.25 * prev and step * step <= scale * prev)
         if done:
             fdone = _norm(residual(x + dx))
-            if np.isfinite(fdone) and fdone <= fnorm * (1 + 1e-6) + 1e-13:
+            if np.isfinite(fdone) and fdone <= 10.0 * fnorm + floor:  # a tiny step only moves rounding
                 return NewtonResult(x + dx, True, it, fdone, step, "converged", lu)
         Ft, Jt = linearise(x + dx)
         ft, lam = _norm(Ft), 1.0
-        while not (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + 1e-13):
+        while not (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor):
             lam *= 0.5
             if lam < min_damping:
                 return NewtonResult(x, False, it, fnorm, step, "line search failed: the residual does not decrease")
