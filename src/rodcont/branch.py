@@ -197,8 +197,8 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     description), where the discretisation defect exceeds ``max_defect``
     (the mesh no longer resolves the shape: raise ``N``), after ``max_steps``,
     or when the step size collapses; each guard is located exactly and
-    ``branch.stop_reason`` says which. ``start = (x, phi_L, tangent or None)``
-    restarts from a stored point. ``out``: branch file written as the trace goes.
+    ``branch.stop_reason`` says which. ``start = (x, phi_L, direction or None)``
+    restarts from a stored point, ``direction = (dx, dphi)`` the way to go on. ``out``: branch file written as the trace goes.
     """
     rod = rod or RodParameters()
     _check_finite(gamma=gamma, phi_max=phi_max, phi_min=phi_min, min_alignment=min_alignment, ds=ds,
@@ -231,7 +231,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
         if np.asarray(x0).size != sysm.disc.size:
             raise ValueError("the start point does not fit this mesh (N, k)")
         if t0 is not None:
-            t0 = (np.asarray(t0[:-1], float), float(t0[-1]))
+            t0 = (np.asarray(t0[0], float), float(t0[1]))
     writer = None
     if out is not None:
         from .branchfile import BranchWriter
@@ -278,7 +278,7 @@ class _Recorder:
         b.add(pt)
         i = len(b) - 1
         if self.writer is not None:
-            self.writer.add(pt.data | {"arclength": pt.arclength}, pt.kind, pt.x, np.append(pt.tx, pt.tp))
+            self.writer.add(pt.data | {"arclength": pt.arclength, "dphi_ds": pt.tp}, pt.kind, pt.x)
         if pt.kind == "fold":
             self.pending.append(i)
         else:

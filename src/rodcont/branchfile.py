@@ -14,7 +14,7 @@ Layout (names are read by other tools; keep them)::
     /branch/defect         (n,)   relative residual between collocation points (error indicator)
     /branch/kind           (n,)   bytes: start, regular, fold, branch_point, forced, bound, event:...
     /branch/coefficients   (n, m) unknown vector x (B-spline coefficients, see /mesh)
-    /branch/tangent        (n, m+1) unit tangent (tx, tp) for restarts
+    /branch/dphi_ds        (n,)   parameter component of the unit tangent (0 at a fold)
     /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index
     /branch_points/index, phi_L, stretch
     /mesh/breakpoints      (N+1,) attrs: k, orders, fields, layout
@@ -34,7 +34,7 @@ import numpy as np
 from . import __version__
 from .rod import FIELDS, ORDERS, RodParameters
 
-SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect")
+SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "dphi_ds")
 FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index")
 
 
@@ -63,8 +63,6 @@ class BranchWriter:
         g.create_dataset("kind", (0,), maxshape=(None,), dtype="S32", chunks=(256,), compression="gzip")
         g.create_dataset("coefficients", (0, size), maxshape=(None, size), dtype="f8",
                          chunks=(16, size), compression="gzip", shuffle=True)
-        g.create_dataset("tangent", (0, size + 1), maxshape=(None, size + 1), dtype="f8",
-                         chunks=(16, size + 1), compression="gzip", shuffle=True)
         fo = self.f.create_group("folds")
         for name in FOLD_FIELDS:
             dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
@@ -86,14 +84,13 @@ class BranchWriter:
         ds.resize(n + 1, axis=0)
         ds[n] = value
 
-    def add(self, data: dict, kind: str, x: np.ndarray, tangent: np.ndarray, waves_before=None, waves_after=None):
+    def add(self, data: dict, kind: str, x: np.ndarray):
         g = self.f["branch"]
         for name in self.columns:
             self._append(g[name], float(data[name]))
         self._append(g["helical_waves"], int(data["helical_waves"]))
         self._append(g["kind"], kind.encode()[:32])
         self._append(g["coefficients"], x)
-        self._append(g["tangent"], tangent)
         self.n += 1
         self.f.flush()
 
@@ -174,9 +171,19 @@ class BranchData:
         i = self.resolve(label)
         out = {name: self.branch[name][i] for name in self.branch if self.branch[name].ndim == 1}
         out["x"] = self.branch["coefficients"][i]
-        out["tangent"] = self.branch["tangent"][i]
         out["index"] = i
+        out["direction"] = self.direction(i)
         return out
+
+    def direction(self, i: int) -> tuple[np.ndarray, float]:
+        """Direction of travel at point ``i``: the secant from the previous point
+        (from point 0: towards the next one, or increasing phi_L)."""
+        X, P = self.branch["coefficients"], self.branch["phi_L"]
+        if i > 0:
+            return X[i] - X[i - 1], float(P[i] - P[i - 1])
+        if len(P) > 1:
+            return X[1] - X[0], float(P[1] - P[0])
+        return np.zeros_like(X[0]), 1.0
 
 
 def load_branch(path: str) -> BranchData:

@@ -223,7 +223,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, min_align
         rod = data.rod
         gamma = data.gamma
         N, k = int(data.attrs["N"]), int(data.attrs["k"])
-        start_data = (pt["x"], float(pt["phi_L"]), pt["tangent"])
+        start_data = (pt["x"], float(pt["phi_L"]), pt["direction"])
         if os.path.abspath(path) == os.path.abspath(out):
             raise UserError("--out must differ from the --start file")
     else:

@@ -195,6 +195,7 @@ class Tracker:
         self.newton_iterations = 0
         self.current: Point | None = None
         self.ds = s.ds
+        self._last_newton: NewtonResult | None = None
 
     # ---- linear algebra on the problem -----------------------------------
     def _linearise(self, x, p):
@@ -225,8 +226,8 @@ class Tracker:
         sign, log = det_sign_log(lu)
         return tx / norm, float(tp / norm), sign, log
 
-    def _correct(self, base: Point, ds: float):
-        """Predictor from ``base`` with step ``ds``, Keller corrector. Returns (x, p, iterations) or None."""
+    def _correct(self, base: Point, ds: float, max_iter: int | None = None):
+        """Predictor from ``base`` with step ``ds``, Keller corrector. Returns (x, p, iterations, lu) or None."""
         s = self.settings
         x = base.x + ds * base.tx
         p = base.p + ds * base.tp
@@ -242,7 +243,9 @@ class Tracker:
             xx, pp = y[:-1], y[-1]
             return np.append(self.problem.residual(xx, pp), c @ (xx - base.x) + d * (pp - base.p) - ds)
 
-        r = newton_solve(lin, res, np.append(x, p), tol=s.newton_tol, max_iter=s.newton_max_iter, min_damping=0.25)
+        r = newton_solve(lin, res, np.append(x, p), tol=s.newton_tol, max_iter=max_iter or s.newton_max_iter,
+                         min_damping=0.25)
+        self._last_newton = r
         self.newton_iterations += r.iterations
         if not r.converged:
             return None
@@ -264,18 +267,33 @@ class Tracker:
 
     # ---- start -------------------------------------------------------------------
     def start(self) -> Point:
+        """Converge the first point and its tangent.
+
+        Without a reference direction: Newton at fixed ``p0``, tangent oriented
+        along ``direction``. With one (``tangent0``, e.g. the secant to the
+        previous point of a stored branch): Newton on ``F = 0`` and
+        ``<t_ref, (x - x0, p - p0)> = 0``, which stays regular at a fold.
+        """
         s = self.settings
-        r = newton_solve(lambda x: self._linearise(x, self._p0)[:2], lambda x: self.problem.residual(x, self._p0),
-                         self._x0, tol=s.newton_tol, max_iter=30)
-        if not r.converged:
-            raise StopContinuation(f"no convergence at the starting point ({r.message})")
-        x = r.x
         if self._t0 is None:
             tx_ref, tp_ref = np.zeros(self.n), float(s.direction)
+            r = newton_solve(lambda x: self._linearise(x, self._p0)[:2],
+                             lambda x: self.problem.residual(x, self._p0), self._x0, tol=s.newton_tol, max_iter=30)
+            x, p = r.x, self._p0
         else:
-            tx_ref, tp_ref = self._t0
-        base = Point(x=x, p=self._p0, tx=tx_ref, tp=tp_ref)
-        pt = self._make_point(x, self._p0, base, 0.0, r.iterations, kind="start")
+            tx_ref, tp_ref = np.asarray(self._t0[0], float), float(self._t0[1])
+            norm = math.sqrt(self.wx * tx_ref @ tx_ref + self.wp * tp_ref * tp_ref)
+            if not norm > 0:
+                raise StopContinuation("the restart direction is zero")
+            tx_ref, tp_ref = tx_ref / norm, tp_ref / norm
+            base = Point(x=self._x0, p=self._p0, tx=tx_ref, tp=tp_ref)
+            c = self._correct(base, 0.0, max_iter=30)
+            r = self._last_newton
+            x, p = (c[0], c[1]) if c is not None else (self._x0, self._p0)
+        if not r.converged:
+            raise StopContinuation(f"no convergence at the starting point ({r.message})")
+        base = Point(x=x, p=p, tx=tx_ref, tp=tp_ref)
+        pt = self._make_point(x, p, base, 0.0, r.iterations, kind="start")
         if pt is None:
             raise StopContinuation("the starting point is singular (no unique tangent): use branch switching")
         pt.arclength = 0.0
@@ -355,7 +373,8 @@ class Tracker:
             found: list[tuple[float, Point, bool, str]] = []  # (arclength offset, point, stop, reason)
 
             # folds
-            if s.detect_folds and base.tp * new.tp < 0:
+            on_fold_start = base.kind == "start" and abs(base.tp) < 1e3 * s.fold_tol  # restarted at a fold
+            if s.detect_folds and base.tp * new.tp < 0 and not on_fold_start:
                 f = self._locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, "fold")
                 if f is not None:
                     found.append((f.ds, f, False, ""))
