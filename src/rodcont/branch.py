@@ -188,6 +188,7 @@ def default_settings(**changes) -> ContinuationSettings:
 def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 5, phi_max: float = 40.0,
           phi_min: float = -1.0, stretch_max: float | None = None, min_alignment: float = 0.05,
           max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.05, ds_max: float = 0.4,
+          ds_min: float = 1e-6,
           forced: Sequence[float] = (), start: tuple | None = None, out: str | None = None,
           callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
     """Trace the branch of the twisted heavy rod in ``phi_L`` from ``phi_L = 0`` (or ``start``).
@@ -211,9 +212,8 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
         _check_finite(stretch_max=stretch_max)
     sysm = RodSystem(rod, gamma, N, k)
     if settings is None:
-        settings = default_settings(ds=ds, ds_max=ds_max, p_min=phi_min, p_max=phi_max, max_steps=max_steps,
-                                    forced=tuple(forced))
-    settings.ds_min = min(settings.ds_min, settings.ds * 1e-3)
+        settings = default_settings(ds=ds, ds_max=ds_max, ds_min=ds_min, p_min=phi_min, p_max=phi_max,
+                                    max_steps=max_steps, forced=tuple(forced))
     settings.validate()
     branch = Branch(gamma=float(gamma), rod=rod, N=N, k=k)
     events = [Event(f"validity guard: min d3.K3 reached min_alignment = {min_alignment:g}",

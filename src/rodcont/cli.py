@@ -190,6 +190,8 @@ class _Progress:
 @click.option("--ds", type=float, default=0.05, show_default=True, callback=_positive("--ds"),
               help="first pseudo-arclength step")
 @click.option("--ds-max", type=float, default=0.4, show_default=True, callback=_positive("--ds-max"))
+@click.option("--ds-min", type=float, default=1e-6, show_default=True, callback=_positive("--ds-min"),
+              help="the trace stops when the step must shrink below this")
 @click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True,
               help="validity guard: stop where min d3.K3 falls to this")
 @click.option("--max-defect", type=float, default=1e-2, show_default=True, callback=_positive("--max-defect"),
@@ -199,7 +201,7 @@ class _Progress:
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
-def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, min_alignment, max_defect, forced,
+def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_defect, forced,
           start, out, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch in Phi through its folds and write it to a branch file.
 
@@ -207,8 +209,8 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, min_align
     bracketed. With --start the rod, Gamma and mesh come from the file.
     """
     from .branch import trace as run_trace
-    if ds > ds_max:
-        raise UserError(f"--ds ({ds:g}) must not exceed --ds-max ({ds_max:g})")
+    if not ds_min <= ds <= ds_max:
+        raise UserError(f"need --ds-min <= --ds <= --ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
     if phi_min >= phi_max:
         raise UserError("--phi-min must be below --phi-max")
     start_data = None
@@ -238,7 +240,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, min_align
     try:
         br = run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
                        min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
-                       ds_max=ds_max, forced=forced, start=start_data, out=out, callback=progress)
+                       ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, out=out, callback=progress)
     except KeyboardInterrupt:
         interrupted = True
         br = None

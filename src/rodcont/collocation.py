@@ -151,6 +151,7 @@ class NewtonResult:
     step_norm: float
     message: str
     lu: object = field(default=None, repr=False)
+    corrections: list = field(default_factory=list, repr=False)  # the first two Newton steps
 
 
 # --------------------------------------------------------------------------
@@ -442,6 +443,7 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
     fnorm, step, prev = _norm(F), np.inf, np.inf
     # residual changes below this are rounding: the size of the terms, not of their sum
     floor = 1e-13 * (1.0 + (fnorm if np.isfinite(fnorm) else 0.0))
+    corrections: list = []
     for it in range(1, max_iter + 1):
         if not np.all(np.isfinite(F)):
             return NewtonResult(x, False, it - 1, fnorm, step, "residual is not finite")
@@ -450,6 +452,8 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
         except RuntimeError as exc:  # exactly singular factor
             return NewtonResult(x, False, it - 1, fnorm, step, f"singular Jacobian ({exc})")
         dx = lu.solve(-F)
+        if len(corrections) < 2:
+            corrections.append(dx)
         prev, step = step, _norm(dx)
         xnorm = _norm(x)
         scale = tol * (1 + xnorm)
@@ -459,7 +463,7 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
         if done:
             fdone = _norm(residual(x + dx))
             if np.isfinite(fdone) and fdone <= 10.0 * fnorm + floor:  # a tiny step only moves rounding
-                return NewtonResult(x + dx, True, it, fdone, step, "converged", lu)
+                return NewtonResult(x + dx, True, it, fdone, step, "converged", lu, corrections)
         Ft, Jt = linearise(x + dx)
         ft, lam = _norm(Ft), 1.0
         while not (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor):

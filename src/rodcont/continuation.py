@@ -68,6 +68,8 @@ class ContinuationSettings:
     grow: float = 1.5
     shrink: float = 0.5
     max_angle: float = 0.35     # radians between successive tangents
+    max_correction: float = 0.5  # first corrector step / ds (a larger one means the predictor was poor)
+    max_contraction: float = 0.5  # second corrector step / first (Newton must contract at once)
     detect_folds: bool = True
     detect_branch_points: bool = True
     fold_tol: float = 1e-10     # |tp| at a located fold
@@ -197,6 +199,10 @@ class Tracker:
         self.ds = s.ds
         self._last_newton: NewtonResult | None = None
 
+    def _wnorm(self, v) -> float:
+        """Arclength norm of a vector ``(dx, dp)``."""
+        return math.sqrt(self.wx * float(v[:-1] @ v[:-1]) + self.wp * float(v[-1]) ** 2)
+
     # ---- linear algebra on the problem -----------------------------------
     def _linearise(self, x, p):
         pb = self.problem
@@ -249,6 +255,15 @@ class Tracker:
         self.newton_iterations += r.iterations
         if not r.converged:
             return None
+        # Step-length guards (Allgower & Georg): a first correction large against ds, or a
+        # Newton iteration that does not contract at once, means the step may have
+        # jumped across a fold or onto another branch.
+        if ds > 0 and r.corrections:
+            d1 = self._wnorm(r.corrections[0])
+            if d1 > s.max_correction * ds:
+                return None
+            if len(r.corrections) > 1 and self._wnorm(r.corrections[1]) > s.max_contraction * d1 + 1e-12:
+                return None
         return r.x[:-1], float(r.x[-1]), r.iterations, r.lu
 
     def _make_point(self, x, p, base: Point, ds: float, iterations: int, kind="regular", lu=None) -> Point | None:

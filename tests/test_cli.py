@@ -1,0 +1,208 @@
+"""The command line as a user meets it: outputs, bad input, interrupts, restarts."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import rodcont
+from rodcont.cli import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run(args, capsys):
+    """Run the CLI in-process; returns (exit status, stdout, stderr)."""
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
+
+
+def assert_one_line_error(code, out, err):
+    assert code == 2
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("rodcont: error:")
+    assert "Traceback" not in err + out
+
+
+# --------------------------------------------------------------------------
+# solve
+# --------------------------------------------------------------------------
+def test_solve_prints_name_value_pairs(capsys):
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "10"], capsys)
+    assert code == 0
+    values = dict(line.split() for line in out.strip().splitlines())
+    for name in ("stretch", "torque", "l0", "helical_waves", "min_alignment", "newton_iterations", "residual_norm"):
+        assert name in values
+    assert float(values["stretch"]) == pytest.approx(3.1059074e-3, abs=1e-10)
+    assert len(values["stretch"].replace("-", "").replace(".", "").lstrip("0").split("e")[0]) >= 10
+
+
+@pytest.mark.parametrize("args", [
+    ["solve", "--gamma", "1", "--phi", "abc"],
+    ["solve", "--gamma", "nan", "--phi", "1"],
+    ["solve", "--gamma", "1", "--phi", "1", "--EI", "-1"],
+    ["solve", "--gamma", "1", "--phi", "1", "--GJ", "0"],
+    ["solve", "--gamma", "1", "--phi", "1", "--EA", "inf"],
+    ["solve", "--gamma", "1", "--phi", "1", "--L", "0"],
+    ["solve", "--gamma", "1", "--phi", "1", "--w", "-3"],
+    ["solve", "--gamma", "1", "--phi", "1", "--k", "0"],
+    ["solve", "--gamma", "1", "--phi", "1", "--k", "8"],
+    ["solve", "--gamma", "1", "--phi", "1", "--N", "0"],
+    ["solve", "--gamma", "1", "--phi", "1", "--N", "x"],
+    ["solve", "--gamma", "-5", "--phi", "1"],  # below the Euler load -4 pi^2 EI / (w L^3) = -3.948
+    ["solve", "--phi", "1"],
+    ["solve", "--gamma", "1", "--phi", "14"],  # beyond the first fold: natural loading cannot get there
+    ["nonsense"],
+])
+def test_solve_bad_input(args, capsys):
+    code, out, err = run(args, capsys)
+    assert_one_line_error(code, out, err)
+
+
+def test_compressed_start_above_the_euler_load_is_accepted(capsys):
+    code, out, err = run(["solve", "--gamma", "-2", "--phi", "1"], capsys)
+    assert code == 0, err
+
+
+# --------------------------------------------------------------------------
+# trace, folds, plot, shape
+# --------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def g1_file(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("br") / "g1.h5")
+    with pytest.raises(SystemExit) as exc:
+        main(["trace", "--gamma", "1", "--out", path, "--quiet"])
+    assert exc.value.code == 0
+    return path
+
+
+def test_trace_writes_a_branch_file(g1_file, capsys):
+    with h5py.File(g1_file, "r") as f:
+        for name in ("rodcont_version", "gamma", "w", "EI", "GJ", "EA", "L", "N", "k", "stop_reason"):
+            assert name in f.attrs
+        n = f["branch/phi_L"].shape[0]
+        for name in ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "arclength"):
+            assert f["branch"][name].shape == (n,)
+        assert f["branch/helical_waves"].dtype.kind == "i"
+        for name in ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index"):
+            assert f["folds"][name].shape == (1,)
+        assert f["folds/phi_L"][0] == pytest.approx(13.0999938, abs=1e-6)
+        assert f.attrs["stop_reason"].startswith("accuracy guard")
+    code, out, err = run(["folds", g1_file], capsys)
+    assert code == 0 and "13.0999938" in out
+
+
+def test_plot_and_shape(g1_file, tmp_path, capsys):
+    png = tmp_path / "d.png"
+    code, out, err = run(["plot", g1_file, "-o", str(png)], capsys)
+    assert code == 0 and png.stat().st_size > 10000
+    png2 = tmp_path / "s.png"
+    code, out, err = run(["shape", g1_file, "--point", "F1", "--point", "0", "-o", str(png2)], capsys)
+    assert code == 0 and png2.stat().st_size > 10000
+
+
+def test_bad_files_and_paths(g1_file, tmp_path, capsys):
+    not_h5 = tmp_path / "text.h5"
+    not_h5.write_text("hello")
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f["x"] = np.arange(3)
+    cases = [
+        ["folds", str(tmp_path / "missing.h5")],
+        ["folds", str(not_h5)],
+        ["folds", str(foreign)],
+        ["folds", str(tmp_path)],
+        ["plot", str(not_h5), "-o", str(tmp_path / "p.png")],
+        ["plot", g1_file, "-o", str(tmp_path / "nodir" / "p.png")],
+        ["shape", g1_file, "--point", "999", "-o", str(tmp_path / "s.png")],
+        ["shape", g1_file, "--point", "F7", "-o", str(tmp_path / "s.png")],
+        ["shape", g1_file, "--point", "abc", "-o", str(tmp_path / "s.png")],
+        ["trace", "--gamma", "1", "--out", str(tmp_path / "nodir" / "t.h5")],
+        ["trace", "--gamma", "1", "--k", "9", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--gamma", "-10", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--gamma", "1", "--ds", "1", "--ds-max", "0.1", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--gamma", "1", "--ds", "0.01", "--ds-min", "0.1", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--gamma", "1", "--min-alignment", "1.5", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--start", str(not_h5) + ":0", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--start", str(foreign) + ":0", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--start", g1_file, "--out", str(tmp_path / "t.h5")],
+        ["trace", "--start", g1_file + ":BP1", "--out", str(tmp_path / "t.h5")],
+        ["trace", "--out", str(tmp_path / "t.h5")],
+    ]
+    for args in cases:
+        code, out, err = run(args, capsys)
+        assert_one_line_error(code, out, err)
+    assert not (tmp_path / "t.h5").exists()
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_non_convergence_is_a_stop_reason(tmp_path, capsys):
+    """An absurd step that may not shrink (ds = ds_min = 5) cannot converge past the first points:
+    the trace stops, keeps what it had, and says why, in the file and to the user."""
+    out = tmp_path / "bad.h5"
+    code, stdout, err = run(["trace", "--gamma", "1", "--ds", "5", "--ds-max", "5", "--ds-min", "5",
+                             "--out", str(out), "--quiet"], capsys)
+    data = rodcont.load_branch(str(out))
+    assert code == 0
+    reason = data.attrs["stop_reason"]
+    assert reason.startswith("step size fell below ds_min = 5 (the corrector did not converge)")
+    assert reason in stdout
+    assert len(data) >= 1
+
+
+def test_interrupted_trace_leaves_a_valid_file_and_restarts(tmp_path):
+    """SIGINT mid-run: the branch file loads and holds every completed point; --start continues."""
+    out = tmp_path / "int.h5"
+    env = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src"), OPENBLAS_NUM_THREADS="1")
+    proc = subprocess.Popen([sys.executable, os.path.join(ROOT, "cli.py"), "trace", "--gamma", "1", "--N", "40",
+                             "--ds-max", "0.05", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+    deadline = time.time() + 60
+    n = 0
+    while time.time() < deadline:  # wait until some points are on disk
+        time.sleep(0.3)
+        try:
+            with h5py.File(out, "r", locking=False) as f:
+                n = f["branch/phi_L"].shape[0]
+        except (OSError, KeyError):
+            continue
+        if n >= 5:
+            break
+    assert n >= 5, "the trace wrote no points"
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert "Traceback" not in stderr
+    data = rodcont.load_branch(str(out))
+    assert data.attrs["stop_reason"] == "interrupted"
+    assert len(data) >= n
+    # every stored point is a solution
+    from rodcont.branch import RodSystem
+    sysm = RodSystem(data.rod, data.gamma, N=40, k=5)
+    for i in range(len(data)):
+        assert np.max(np.abs(sysm.residual(data.branch["coefficients"][i], data.branch["phi_L"][i]))) < 1e-8
+    # and a second run continues from the last point
+    out2 = tmp_path / "cont.h5"
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "cli.py"), "trace", "--start", f"{out}:-1",
+                        "--phi-max", str(data.branch["phi_L"][-1] + 1.0), "--out", str(out2), "--quiet"],
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    cont = rodcont.load_branch(str(out2))
+    assert cont.branch["phi_L"][0] == pytest.approx(data.branch["phi_L"][-1], abs=1e-9)
+    assert cont.branch["phi_L"][-1] > cont.branch["phi_L"][0]
+
+
+def test_python_cli_entry_matches_console_script():
+    env = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src"))
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "cli.py"), "solve", "--gamma", "1", "--phi", "0"],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0
+    assert "stretch 0.000924497" in r.stdout
