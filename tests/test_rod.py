@@ -20,10 +20,12 @@ PAPER = RodParameters()
 
 
 def straight_solution(model, disc, phi_L, T):
-    """Exact straight solution of the weightless rod: Delta = 0, phi = Phi S / L, F = T e1."""
+    """Exact straight solution of the weightless rod: Delta = 0, phi = Phi S / L, F = T K3.
+
+    (Force unknowns are components on the frame K1, K2, K3.)"""
     L = model.rod.L
     zero = lambda S: 0 * S
-    return disc.project([zero, zero, lambda S: phi_L * S / L, lambda S: T + 0 * S, zero, zero])
+    return disc.project([zero, zero, lambda S: phi_L * S / L, zero, zero, lambda S: T + 0 * S])
 
 
 # --------------------------------------------------------------------------
@@ -159,15 +161,16 @@ def test_gamma1_reference_numbers():
 # 3D solution in the Lagrangian coordinate
 # --------------------------------------------------------------------------
 def _end_state(eq):
-    """r, directors (columns), F and M at S = 0 from the Eulerian solution."""
+    """r, directors (columns), F and M at S = 0 from the Eulerian solution, global components."""
     model, disc, x = eq.system.model, eq.system.disc, eq.x
     rod = model.rod
     S0 = np.array([0.0])
     D = model.directors(disc, x, S0)[:, :, 0].T  # columns d1, d2, d3
-    z0 = disc.end_jets(x)[0][:, None]
-    r, r1, r2, _ = model.curve.centreline_jets(S0, z0[0:4], z0[4:8])
+    D1 = np.stack([disc.evaluate(x, S0, 0, nu) for nu in range(4)])
+    D2 = np.stack([disc.evaluate(x, S0, 1, nu) for nu in range(4)])
+    r, r1, r2, _ = model.curve.centreline_jets(S0, D1, D2)
     n = np.linalg.norm(r1[:, 0])
-    F = z0[[11, 13, 15], 0]
+    F = model.force(disc, x, S0)[:, 0]
     d3 = r1[:, 0] / n
     alpha = 1 + F @ d3 / rod.EA
     u_perp = alpha * np.cross(r1[:, 0], r2[:, 0]) / n**3

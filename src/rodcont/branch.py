@@ -216,13 +216,15 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
                                     max_steps=max_steps, forced=tuple(forced))
     settings.validate()
     branch = Branch(gamma=float(gamma), rod=rod, N=N, k=k)
+    # The guards are thresholds of judgement: located to 1e-6 of their value, not to rounding.
     events = [Event(f"validity guard: min d3.K3 reached min_alignment = {min_alignment:g}",
-                    lambda q: q.data["min_alignment"] - min_alignment, stop=True),
+                    lambda q: q.data["min_alignment"] - min_alignment, stop=True, tol=1e-6),
               Event(f"accuracy guard: discretisation defect reached max_defect = {max_defect:g} "
                     f"(the mesh no longer resolves the shape; raise N)",
-                    lambda q: max_defect - q.data["defect"], stop=True)]
+                    lambda q: 1.0 - q.data["defect"] / max_defect, stop=True, tol=1e-6)]
     if stretch_max is not None:
-        events.append(Event(f"stretch_max = {stretch_max:g} reached", lambda q: stretch_max - q.data["stretch"], stop=True))
+        events.append(Event(f"stretch_max = {stretch_max:g} reached", lambda q: stretch_max - q.data["stretch"],
+                            stop=True))
     if start is None:
         x0 = sysm.model.initial_guess(sysm.disc, sysm.base[1])
         p0, t0 = 0.0, None

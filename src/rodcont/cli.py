@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
 import time
 
@@ -237,16 +238,32 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     progress = _Progress(quiet)
     t0 = time.perf_counter()
     interrupted = False
+    # Ctrl-C is taken between points (after the point is on disk), so it never lands in
+    # the middle of a write; a second Ctrl-C interrupts at once.
+    pending = []
+
+    def on_sigint(signum, frame):
+        if pending:
+            raise KeyboardInterrupt
+        pending.append(signum)
+
+    def callback(pt):
+        progress(pt)
+        if pending:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
     try:
-        br = run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
-                       min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
-                       ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, out=out, callback=progress)
+        run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
+                  min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
+                  ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, out=out, callback=callback)
     except KeyboardInterrupt:
         interrupted = True
-        br = None
     except ValueError as exc:
         _remove_if_empty(out)
         raise UserError(str(exc)) from None
+    finally:
+        signal.signal(signal.SIGINT, previous)
     progress.done()
     elapsed = time.perf_counter() - t0
     data = _load(out)

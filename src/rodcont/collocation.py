@@ -248,6 +248,14 @@ class Collocation:
             bc_pattern |= (np.abs(dg[:, :nz]) @ np.abs(self.E_ends[0]) + np.abs(dg[:, nz:]) @ np.abs(self.E_ends[1])) != 0
         bc_pattern[:, self.free_index] = True
         self.active = np.flatnonzero(used)
+        # parameters the pointwise residual depends on (others enter only the bc)
+        npar = max(len(pb.params), 1)
+        self.param_in_residual = np.zeros(npar, bool)
+        for j in range(npar):
+            pc = pr.astype(complex)
+            pc[j] += 1j * COMPLEX_STEP
+            G = np.asarray(pb.residual(S, z.astype(complex), pc))
+            self.param_in_residual[j] = np.any(G.imag != 0)
         self._bc_pattern = np.nonzero(bc_pattern)
 
     def _build_pattern(self) -> None:
@@ -358,7 +366,10 @@ class Collocation:
         for j in want:  # parameter derivatives, natural row order
             pc = pf.astype(complex)
             pc[j] += 1j * COMPLEX_STEP
-            dGj = np.asarray(pb.residual(self.S, z.astype(complex), pc)).reshape(-1, npts).imag / COMPLEX_STEP
+            if self.param_in_residual[j]:
+                dGj = np.asarray(pb.residual(self.S, z.astype(complex), pc)).reshape(-1, npts).imag / COMPLEX_STEP
+            else:
+                dGj = np.zeros((n, npts))
             dgj = np.atleast_1d(pb.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
             dFp.append(np.concatenate([dGj.T.ravel(), dgj]))
         for j in range(len(free)):

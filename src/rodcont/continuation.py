@@ -116,6 +116,7 @@ class Event:
     name: str
     function: Callable[[Point], float]
     stop: bool = False
+    tol: float = 1e-11  # located where |g| <= tol * |g at the last point before it|
 
 
 # --------------------------------------------------------------------------
@@ -423,7 +424,7 @@ class Tracker:
             for ev in self.events:
                 g0, g1 = ev.function(base), ev.function(new)
                 if g0 * g1 < 0:
-                    f = self._locate(base, ds, ev.function, g0, g1, s.locate_tol * max(abs(g0), 1e-300),
+                    f = self._locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), 1e-300),
                                      f"event:{ev.name}")
                     if f is not None:
                         found.append((f.ds, f, ev.stop, f"{ev.name}"))

@@ -4,8 +4,8 @@ The rod is described as a perturbation of a reference curve ``R(S)`` with
 frame ``{K1, K2, K3 = R'}``: centreline ``r = R + Delta1 K1 + Delta2 K2``,
 section turned by ``phi(S)`` about ``d3`` relative to the minimal-rotation
 image ``{a1, a2}`` of ``{K1, K2}`` (pole ``p = K3``). Unknown fields and
-orders: ``Delta1, Delta2`` (3), ``phi`` (2), the global components of the
-internal force ``F`` (1 each). With ``n = |r'|``, ``d3 = r'/n``,
+orders: ``Delta1, Delta2`` (3), ``phi`` (2), the components of the internal
+force ``F`` on the frame ``K1, K2, K3`` (1 each). With ``n = |r'|``, ``d3 = r'/n``,
 ``alpha = 1 + F.d3/EA``, ``s' = n/alpha`` the equations (FORMULATION.md §2)::
 
     F' + f s' = 0                                   (3, f = w g per unstressed length)
@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from .collocation import BVProblem, Collocation
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
-FIELDS = ("Delta1", "Delta2", "phi", "F1", "F2", "F3")
+FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
 ORDERS = (3, 3, 2, 1, 1, 1)
 
 
@@ -51,9 +51,9 @@ def _cross(a, b):
     return out
 
 
-def _vdot(const, a):
-    """``c . a`` for a constant 3-vector ``c`` and field ``a`` (3, npts)."""
-    return const[0] * a[0] + const[1] * a[1] + const[2] * a[2]
+def _cross2(a, b):
+    """First two components of ``a x b``."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2]])
 
 
 # --------------------------------------------------------------------------
@@ -174,6 +174,8 @@ class EulerianRod:
         self.pole = self.curve.K3
         self.K1, self.K2 = self.curve.K1, self.curve.K2
         self.g = np.asarray(self.rod.weight_direction, float)
+        self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
+        self.gK = self.frame @ self.g  # weight direction in frame components
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
                                  interval=(0.0, self.rod.L), params=PARAMS, names=FIELDS)
 
@@ -184,20 +186,25 @@ class EulerianRod:
         return np.array([d[n] for n in PARAMS], float)
 
     # ---- kinematics shared by residual and outputs ----------------------------
-    def _kinematics(self, S, z):
-        r, r1, r2, r3 = self.curve.centreline_jets(S, z[0:4], z[4:8])
-        n2 = _dot(r1, r1)
-        n = np.sqrt(n2)
-        d3 = r1 / n
-        return r, r1, r2, r3, n2, n, d3
+    # With a constant frame every vector is written in frame components
+    # (v.K1, v.K2, v.K3): r' = (Delta1', Delta2', 1), the pole p = K3 = (0, 0, 1),
+    # and projections on K1, K2 are plain components (fewer operations per point).
+    def _frame_jets(self, z):
+        """First three S-derivatives of ``r`` in frame components, each ``(3, npts)``."""
+        one = np.ones_like(z[0])
+        zero = np.zeros_like(z[0])
+        return (np.stack([z[1], z[5], one]), np.stack([z[2], z[6], zero]), np.stack([z[3], z[7], zero]))
 
     def residual(self, S, z, p):
-        """Pointwise residual ``(6, npts)`` of the Eulerian equations."""
+        """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
         phi_L, T, w, EI, GJ, EA = p
-        r, r1, r2, r3, n2, n, d3 = self._kinematics(S, z)
+        r1, r2, r3 = self._frame_jets(z)
         F = z[[11, 13, 15]]
         Fp = z[[12, 14, 16]]
         phi1, phi2 = z[9], z[10]
+        n2 = _dot(r1, r1)
+        n = np.sqrt(n2)
+        d3 = r1 / n
         c = _dot(r1, r2)
         d3r2 = _dot(d3, r2)
         e = r2 - d3 * d3r2
@@ -210,25 +217,23 @@ class EulerianRod:
         uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
         J1 = alpha / n
         J1p = alphap / n - alpha * c / n3
-        P = self.pole
-        pd = 1.0 + _vdot(P, d3)
-        pxd = _vdot(P, _cross(d3, d3p))
+        # pole p = K3: p.v = v[2], p.(a x b) = a0 b1 - a1 b0
+        pd = 1.0 + d3[2]
+        pxd = d3[0] * d3p[1] - d3[1] * d3p[0]
         tau = -pxd / pd
-        taup = -_vdot(P, _cross(d3, d3pp)) / pd + pxd * _vdot(P, d3p) / pd**2
+        taup = -(d3[0] * d3pp[1] - d3[1] * d3pp[0]) / pd + pxd * d3p[2] / pd**2
         twist = phi1 + tau
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
-        EF = Fp + (w * n / alpha) * self.g[:, None]
-        EM = EI * uperp_p + m * d3p + mp * d3 + _cross(r1, F)
-        return np.stack([EF[0], EF[1], EF[2], _vdot(self.K1, EM), _vdot(self.K2, EM), mp / GJ])
+        EF = Fp + (w * n / alpha) * self.gK[:, None]
+        EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
+        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def bc(self, za, zb, p):
         """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(L) = phi_L``, tension."""
         phi_L, T = p[0], p[1]
-        K3 = self.pole
-        axial = K3[0] * zb[11] + K3[1] * zb[13] + K3[2] * zb[15]
         return np.stack([za[0], za[1], za[4], za[5], zb[0], zb[1], zb[4], zb[5],
-                         za[8], zb[8] - phi_L, axial - T])
+                         za[8], zb[8] - phi_L, zb[15] - T])
 
     def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
         if breakpoints is None:
@@ -241,18 +246,30 @@ class EulerianRod:
         """Straight untwisted rod; ``F`` carries ``T`` along the axis and the weight of a rod of length ``L``.
 
         ``F' = -w g`` split into its transverse part (shared equally by the two
-        clamps) and its axial part (``F . K3 = T`` at ``S = L``).
+        clamps) and its axial part (``F . K3 = T`` at ``S = L``); frame components.
         """
-        L, w, g, K3 = self.rod.L, self.rod.w, self.g, self.pole
-        ga = float(g @ K3)
-        gt = g - ga * K3
+        L, w, gK = self.rod.L, self.rod.w, self.gK
+        axis = np.array([0.0, 0.0, 1.0])
+        ga = float(gK[2])
+        gt = gK - ga * axis
         comps = [lambda S: 0 * S] * 3
-        comps += [lambda S, a=a: T * K3[a] - w * gt[a] * (S - 0.5 * L) - w * ga * K3[a] * (S - L) for a in range(3)]
+        comps += [lambda S, a=a: T * axis[a] - w * gt[a] * (S - 0.5 * L) - w * ga * axis[a] * (S - L)
+                  for a in range(3)]
         return disc.project(comps)
+
+    def force(self, disc: Collocation, x: np.ndarray, S) -> np.ndarray:
+        """Internal force ``F(S)`` in global components, ``(3, len(S))``."""
+        S = np.atleast_1d(np.asarray(S, float))
+        FK = np.stack([disc.evaluate(x, S, i) for i in (3, 4, 5)])
+        return self.frame.T @ FK
 
     # ---- derived outputs -------------------------------------------------
     def outputs(self, disc: Collocation, x: np.ndarray, p: np.ndarray, samples: int = 8) -> dict:
-        """``stretch``, ``torque``, ``l``, ``l0``, ``min_alignment``, ``helical_waves`` of a solution."""
+        """``stretch``, ``torque``, ``l``, ``l0``, ``min_alignment``, ``helical_waves``, ``defect`` of a solution.
+
+        ``torque`` is the mean over the mesh points (superconvergent), ``torque_spread``
+        its range there; ``l, l0`` use the Gauss rule of the mesh (error O(h^2k)).
+        """
         out = getattr(disc, "_rod_outputs", None)
         if out is None or out.model is not self or out.samples != samples:
             out = disc._rod_outputs = _Outputs(self, disc, samples)
@@ -263,13 +280,15 @@ class EulerianRod:
         return self._axial_quantities(disc.S, disc.jets(x), p)[0]
 
     def _axial_quantities(self, S, z, p):
+        """Torque ``m``, stretch ``alpha``, ``n = |r'|`` and ``d3`` (frame components) at points ``S``."""
         phi_L, T, w, EI, GJ, EA = p
-        r, r1, r2, r3, n2, n, d3 = self._kinematics(S, z)
+        r1, r2, _ = self._frame_jets(z)
+        n = np.sqrt(_dot(r1, r1))
+        d3 = r1 / n
         F = z[[11, 13, 15]]
         d3p = (r2 - d3 * _dot(d3, r2)) / n
         alpha = 1.0 + _dot(F, d3) / EA
-        P = self.pole
-        tau = -_vdot(P, _cross(d3, d3p)) / (1.0 + _vdot(P, d3))
+        tau = -(d3[0] * d3p[1] - d3[1] * d3p[0]) / (1.0 + d3[2])
         m = GJ * alpha / n * (z[9] + tau)
         return m, alpha, n, d3
 
@@ -318,6 +337,10 @@ class _Outputs:
         self.S_check = (b[:-1, None] + 0.5 * np.diff(b)[:, None] * (mids[None, :] + 1.0)).ravel()
         self.E_check = sp.vstack([disc.evaluation_matrix(self.S_check, i, nu)
                                   for i, m in enumerate(disc.problem.orders) for nu in range(m + 1)]).tocsr()
+        # Jets at the mesh points, where Gauss collocation is superconvergent (O(h^2k)):
+        # the torque is read there.
+        self.E_mesh = sp.vstack([disc.evaluation_matrix(b, i, nu)
+                                 for i, m in enumerate(disc.problem.orders) for nu in range(m + 1)]).tocsr()
         self.E1 = disc.evaluation_matrix(S, 0, 1)
         self.E2 = disc.evaluation_matrix(S, 1, 1)
         self.F1 = disc.evaluation_matrix(S, 0, 0)
@@ -334,11 +357,13 @@ class _Outputs:
         d1p, d2p = self.E1 @ x, self.E2 @ x
         align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
         D1, D2 = self.F1 @ x, self.F2 @ x
-        return dict(stretch=(l - L) / L, torque=float(np.mean(m)), l=l, l0=l0,
+        zm = (self.E_mesh @ x).reshape(z.shape[0], -1)
+        m_mesh = model._axial_quantities(self.disc.breakpoints, zm, p)[0]
+        return dict(stretch=(l - L) / L, torque=float(np.mean(m_mesh)), l=l, l0=l0,
                     defect=self.defect(x, p, z),
                     min_alignment=float(np.min(align)),
                     helical_waves=helical_waves(self.S, D1, D2, d1p, d2p),
-                    torque_spread=float(np.ptp(m)))
+                    torque_spread=float(np.ptp(m_mesh)))
 
 
     def defect(self, x, p, z) -> float:
