@@ -189,7 +189,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
           phi_min: float = -1.0, stretch_max: float | None = None, min_alignment: float = 0.05,
           max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.05, ds_max: float = 0.4,
           ds_min: float = 1e-6,
-          forced: Sequence[float] = (), start: tuple | None = None, out: str | None = None,
+          forced: Sequence[float] = (), start: tuple | None = None, switch: bool = False, out: str | None = None,
           callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
     """Trace the branch of the twisted heavy rod in ``phi_L`` from ``phi_L = 0`` (or ``start``).
 
@@ -199,7 +199,8 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     (the mesh no longer resolves the shape: raise ``N``), after ``max_steps``,
     or when the step size collapses; each guard is located exactly and
     ``branch.stop_reason`` says which. ``start = (x, phi_L, direction or None)``
-    restarts from a stored point, ``direction = (dx, dphi)`` the way to go on. ``out``: branch file written as the trace goes.
+    restarts from a stored point, ``direction = (dx, dphi)`` the way to go on; with
+    ``switch`` the start is a branch point and the trace leaves it along the other branch. ``out``: branch file written as the trace goes.
     """
     rod = rod or RodParameters()
     _check_finite(gamma=gamma, phi_max=phi_max, phi_min=phi_min, min_alignment=min_alignment, ds=ds,
@@ -242,7 +243,11 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
                     min_alignment_guard=min_alignment, max_defect=max_defect)
         writer = BranchWriter(out, meta, sysm.disc.size, sysm.disc.breakpoints)
     recorder = _Recorder(branch, writer)
-    tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=events, tangent0=t0)
+    if switch:
+        if start is None or t0 is None:
+            raise ValueError("switch needs a start point with its incoming direction")
+        t0 = switch_direction(sysm, np.asarray(x0, float), float(p0), t0, settings)
+    tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=events, tangent0=t0, exact_start=switch)
     t_start = time.perf_counter()
     try:
         for pt in tracker:
@@ -299,3 +304,143 @@ class _Recorder:
         self._flush_folds()
         if self.writer is not None:
             self.writer.close(reason)
+
+
+# --------------------------------------------------------------------------
+# Two parameters: fold curves and branch switching
+# --------------------------------------------------------------------------
+CURVE_PARAMS = ("gamma", "T", "w", "EI", "GJ", "EA")
+
+
+class RodSystem2:
+    """The rod as a two-parameter problem ``F(x, phi_L, q) = 0`` for fold curves.
+
+    ``q`` is ``gamma`` (``T = gamma w L``, the others fixed) or one of ``T, w,
+    EI, GJ, EA`` (the others, including ``T``, fixed).
+    """
+
+    def __init__(self, rod: RodParameters, gamma: float, N: int, k: int, param: str):
+        if param not in CURVE_PARAMS:
+            raise ValueError(f"--param must be one of {', '.join(CURVE_PARAMS)}, got {param!r}")
+        if param == "gamma" and rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
+        self.one = RodSystem(rod, gamma, N, k)
+        self.param = param
+        self.index = PARAMS.index("T" if param == "gamma" else param)
+        self.scale = rod.w * rod.L if param == "gamma" else 1.0  # d(entry)/dq
+
+    def value(self) -> float:
+        """``q`` at the base parameters."""
+        return float(self.one.base[self.index] / self.scale)
+
+    def params(self, phi_L, q):
+        p = self.one.base.copy()
+        p[0] = phi_L
+        p[self.index] = q * self.scale
+        return p
+
+    def residual(self, x, phi_L, q):
+        return self.one.disc.residual(x, self.params(phi_L, q))
+
+    def tangent(self, x, phi_L, q):
+        _, J, (F1, Fq) = self.one.disc.linearise(x, self.params(phi_L, q), [0, self.index])
+        return J, F1, Fq * self.scale
+
+    def outputs(self, X, q) -> dict:
+        x, phi_L = X[:-1], X[-1]
+        p = self.params(phi_L, q)
+        o = self.one.model.outputs(self.one.disc, x, p)
+        return dict(phi_L=float(phi_L), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
+                    helical_waves=o["helical_waves"], min_alignment=o["min_alignment"], defect=o["defect"],
+                    **{self.param: float(q)})
+
+
+def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | None = None,
+               ds: float = 0.05, ds_max: float = 0.5, max_steps: int = 500, forced: Sequence[float] = (),
+               callback: Callable[[Point], None] | None = None) -> dict:
+    """Continue the ``fold``-th fold (from 0) of a loaded branch file in ``(phi_L, param)`` over ``[lo, hi]``.
+
+    Minimally augmented system (:class:`rodcont.bifurcation.FoldProblem`) traced from
+    the fold in both directions; ``lo`` and ``hi`` are located exactly. Returns
+    ``{"points": [...], "stop_reasons": (down, up)}`` with the points ordered by the
+    locus; ``out`` writes them as a branch file whose ``branch`` group also holds
+    ``param``.
+    """
+    from .bifurcation import FoldProblem
+    from .branchfile import BranchWriter
+
+    folds = data.folds
+    nf = len(folds.get("index", []))
+    if not 0 <= fold < nf:
+        raise ValueError(f"{data.path} has {nf} fold(s); fold {fold} (counted from 0) does not exist")
+    _check_finite(lo=lo, hi=hi, ds=ds, ds_max=ds_max)
+    if not lo < hi:
+        raise ValueError("the range must be given as A B with A < B")
+    N, k = int(data.attrs["N"]), int(data.attrs["k"])
+    two = RodSystem2(data.rod, data.gamma, N, k, param)
+    q0 = two.value()
+    if not lo <= q0 <= hi:
+        raise ValueError(f"the fold's {param} = {q0:g} is outside the range [{lo:g}, {hi:g}]")
+    i = int(folds["index"][fold])
+    x0, phi0 = data.branch["coefficients"][i], float(data.branch["phi_L"][i])
+    # the branch tangent at the fold is (v, 0): v is the right null vector of J
+    J, F1, _ = two.tangent(x0, phi0, q0)
+    v0 = _fold_null_vector(J, np.asarray(F1, float), x0.size)
+    fp = FoldProblem(two, x0, phi0, q0, v0)
+    X0 = np.append(x0, phi0)
+    parts = []
+    reasons = []
+    for direction, bound in ((-1, lo), (1, hi)):
+        s = ContinuationSettings(ds=ds, ds_min=min(1e-7, ds), ds_max=ds_max, direction=direction,
+                                 p_min=lo if direction < 0 else -math.inf, p_max=hi if direction > 0 else math.inf,
+                                 max_steps=max_steps, detect_folds=True, detect_branch_points=False,
+                                 forced=tuple(forced), max_angle=0.3)
+        tr = Tracker(fp, X0, q0, s, monitor=two.outputs)
+        pts = []
+        try:
+            for pt in tr:
+                pts.append(pt)
+                if callback is not None:
+                    callback(pt)
+            reasons.append(tr.stop_reason)
+        except StopContinuation as exc:
+            reasons.append(str(exc))
+        parts.append(pts)
+    down, up = parts
+    for pt in down:
+        pt.arclength = -pt.arclength
+    ordered = list(reversed(down[1:])) + up  # the start point once
+    for pt in ordered:
+        pt.data["arclength"] = pt.arclength
+    if out is not None:
+        meta = dict(gamma=float(data.gamma), w=data.rod.w, EI=data.rod.EI, GJ=data.rod.GJ, EA=data.rod.EA,
+                    L=data.rod.L, N=N, k=k, param=param, weight_direction=np.asarray(data.rod.weight_direction),
+                    source=f"{data.path}: fold {fold}")
+        w = BranchWriter(out, meta, x0.size, two.one.disc.breakpoints, extra_columns=(param,) if param != "phi_L" else ())
+        try:
+            for pt in ordered:
+                w.add(pt.data | {"dphi_ds": pt.tx[-1]}, pt.kind, pt.x[:-1])
+        finally:
+            w.close(f"down: {reasons[0]}; up: {reasons[1]}")
+    return {"points": ordered, "stop_reasons": tuple(reasons), "param": param}
+
+
+def _fold_null_vector(J, F1, n):
+    """Right null vector of ``J`` at a fold: the tangent of ``[J, F_phi]`` there, x part."""
+    from .continuation import bordered, factorise
+    rng = np.random.default_rng(3)
+    c = rng.standard_normal(n + 1)
+    A = bordered(J, F1, c[:-1], c[-1])
+    e = np.zeros(n + 1)
+    e[-1] = 1.0
+    t = factorise(A).solve(e)
+    return t[:-1]
+
+
+def switch_direction(sysm: RodSystem, x: np.ndarray, phi_L: float, direction: tuple, settings: ContinuationSettings):
+    """Direction of the other branch at a branch point of ``sysm`` (incoming direction given)."""
+    from .bifurcation import bifurcating_direction
+    F, J, Fp = sysm.linearise(x, phi_L)
+    tr = Tracker(sysm, x, phi_L, settings)
+    tx, tp = bifurcating_direction(J, Fp, np.asarray(direction[0], float), float(direction[1]), tr.wx, tr.wp)
+    return tx, tp

@@ -199,11 +199,12 @@ class _Progress:
               help="accuracy guard: stop where the relative residual between collocation points reaches this")
 @click.option("--forced", type=float, multiple=True, help="a Phi value that gets a point of its own (repeatable)")
 @click.option("--start", default=None, help="restart from FILE.h5:POINT (index from 0, F<j> or BP<j> from 1)")
+@click.option("--switch", is_flag=True, help="with --start at a branch point: follow the other branch")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_defect, forced,
-          start, out, quiet, N, k, w, EI, GJ, EA, L):
+          start, switch, out, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch in Phi through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
@@ -227,9 +228,13 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         gamma = data.gamma
         N, k = int(data.attrs["N"]), int(data.attrs["k"])
         start_data = (pt["x"], float(pt["phi_L"]), pt["direction"])
+        if switch and pt["kind"] != "branch_point":
+            raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
         if os.path.abspath(path) == os.path.abspath(out):
             raise UserError("--out must differ from the --start file")
     else:
+        if switch:
+            raise UserError("--switch needs --start FILE.h5:BP<j>")
         if gamma is None:
             raise UserError("--gamma is required (or --start FILE.h5:POINT)")
         rod = _rod(w, EI, GJ, EA, L)
@@ -256,7 +261,8 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     try:
         run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
                   min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
-                  ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, out=out, callback=callback)
+                  ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, switch=switch, out=out,
+                  callback=callback)
     except KeyboardInterrupt:
         interrupted = True
     except ValueError as exc:
@@ -356,6 +362,108 @@ def shape(file, points, output):
         curves.append((r, f"#{pt['index']}: Φ = {pt['phi_L']:.4f}, stretch = {pt['stretch']:.4f}"))
     shape_figure(curves, _out_path(output), f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
     click.echo(f"wrote {output}")
+
+
+@main_group.command("fold-curve")
+@click.argument("spec")
+@click.option("--param", type=click.Choice(["gamma", "T", "w", "EI", "GJ", "EA"]), default="gamma", show_default=True,
+              help="second parameter (gamma keeps w fixed; the others keep T fixed)")
+@click.option("--range", "prange", type=float, nargs=2, required=True, help="A B: the interval of the parameter")
+@click.option("--ds", type=float, default=0.05, show_default=True, callback=_positive("--ds"))
+@click.option("--ds-max", type=float, default=0.5, show_default=True, callback=_positive("--ds-max"))
+@click.option("--max-steps", type=click.IntRange(1, 10**6), default=500, show_default=True)
+@click.option("--forced", type=float, multiple=True, help="a parameter value that gets a point of its own")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="fold-curve file to write (HDF5)")
+@click.option("--quiet", is_flag=True)
+def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, forced, out, quiet):
+    """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I is the I-th fold, counted from 0."""
+    from .branch import fold_curve
+    path, label = _split_label(spec, "fold-curve")
+    try:
+        fold = int(label)
+    except ValueError:
+        raise UserError(f"fold-curve expects FILE.h5:I with I the fold number from 0, got {label!r}") from None
+    if not all(math.isfinite(v) for v in prange):
+        raise UserError("--range needs two finite numbers")
+    data = _load(path)
+    _out_path(out)
+    progress = _Progress(quiet)
+    t0 = time.perf_counter()
+    try:
+        res = fold_curve(data, fold, param, prange[0], prange[1], out=out, ds=ds, ds_max=ds_max,
+                         max_steps=max_steps, forced=forced, callback=progress)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    progress.done()
+    pts = res["points"]
+    if len(pts) <= 1:
+        raise UserError(f"the fold could not be continued: {'; '.join(res['stop_reasons'])}")
+    click.echo(f"points       {len(pts)}")
+    click.echo(f"stop reasons down: {res['stop_reasons'][0]}; up: {res['stop_reasons'][1]}")
+    click.echo(f"time         {time.perf_counter() - t0:.3f} s")
+    click.echo(f"{param:>12} {'phi_L':>18} {'stretch':>16} {'torque':>14} kind")
+    for pt in pts:
+        d = pt.data
+        click.echo(f"{d[param]:12.6f} {d['phi_L']:18.12f} {d['stretch']:16.10f} {d['torque']:14.8f} {pt.kind}")
+
+
+class _GreedyFloats(click.Option):
+    """An option taking one or more numbers: ``--gamma 0 0.5 1 2 5``."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("multiple", True)
+        super().__init__(*args, **kwargs)
+
+    def add_to_parser(self, parser, ctx):
+        super().add_to_parser(parser, ctx)
+        opt = parser._long_opt.get(self.opts[0])
+        if opt is None:
+            return
+        orig = opt.process
+
+        def process(value, state):
+            orig(value, state)
+            while state.rargs and not state.rargs[0].startswith("--"):
+                orig(state.rargs.pop(0), state)
+
+        opt.process = process
+
+
+@main_group.command()
+@click.option("--gamma", "gammas", cls=_GreedyFloats, type=float, required=True, help="tension ratios, e.g. 0 0.5 1 2 5")
+@click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_finite("--phi-max"))
+@click.option("--phi-min", type=float, default=-1.0, show_default=True, callback=_finite("--phi-min"))
+@click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True)
+@click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True)
+@click.option("--max-defect", type=float, default=1e-2, show_default=True, callback=_positive("--max-defect"))
+@click.option("--jobs", type=click.IntRange(1, 1024), default=None, help="parallel processes [default: all cores]")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="directory for the files")
+@click.option("--quiet", is_flag=True)
+@rod_options
+def sweep(gammas, phi_max, phi_min, max_steps, min_alignment, max_defect, jobs, out_dir, quiet, N, k, w, EI, GJ, EA, L):
+    """A family of branches, one per Gamma, traced in parallel, and their combined diagram."""
+    from .family import sweep as run_sweep
+    rod = _rod(w, EI, GJ, EA, L)
+    for g in gammas:
+        if not math.isfinite(g):
+            raise UserError(f"--gamma values must be finite numbers, got {g}")
+        _check_gamma(g, rod)
+    if len(set(gammas)) != len(gammas):
+        raise UserError("--gamma values must be distinct")
+    parent = os.path.dirname(os.path.abspath(out_dir))
+    if not os.path.isdir(parent):
+        raise UserError(f"cannot create {out_dir}: directory {parent} does not exist")
+    os.makedirs(out_dir, exist_ok=True)
+    t0 = time.perf_counter()
+    res = run_sweep(list(gammas), out_dir, rod=rod, N=N, k=k, jobs=jobs, progress=not quiet,
+                    phi_max=phi_max, phi_min=phi_min, max_steps=max_steps, min_alignment=min_alignment,
+                    max_defect=max_defect)
+    click.echo(f"{'gamma':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
+    for r in res["branches"]:
+        ff = f"{r['first_fold']:18.10f}" if r["first_fold"] is not None else f"{'-':>18}"
+        click.echo(f"{r['gamma']:8g} {r['points']:7d} {r['folds']:6d} {ff}  {r['stop_reason']}")
+    click.echo(f"diagram      {res['diagram']}")
+    click.echo(f"time         {time.perf_counter() - t0:.2f} s ({res['jobs']} processes)")
 
 
 def main(argv=None):

@@ -183,7 +183,8 @@ class Tracker:
     """
 
     def __init__(self, problem, x0: np.ndarray, p0: float, settings: ContinuationSettings | None = None,
-                 monitor: Callable | None = None, events: Sequence[Event] = (), tangent0=None):
+                 monitor: Callable | None = None, events: Sequence[Event] = (), tangent0=None,
+                 exact_start: bool = False):
         self.problem = problem
         self.settings = s = settings or ContinuationSettings()
         s.validate()
@@ -199,6 +200,11 @@ class Tracker:
         self.current: Point | None = None
         self.ds = s.ds
         self._last_newton: NewtonResult | None = None
+        # exact_start: (x0, p0) is a solution and tangent0 the direction to leave it by,
+        # used as is (branch switching: at a branch point no bordered system is regular)
+        self.exact_start = exact_start
+        if exact_start and tangent0 is None:
+            raise ValueError("exact_start needs tangent0")
 
     def _wnorm(self, v) -> float:
         """Arclength norm of a vector ``(dx, dp)``."""
@@ -291,6 +297,14 @@ class Tracker:
         ``<t_ref, (x - x0, p - p0)> = 0``, which stays regular at a fold.
         """
         s = self.settings
+        if self.exact_start:
+            tx, tp = np.asarray(self._t0[0], float), float(self._t0[1])
+            norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
+            pt = Point(x=self._x0.copy(), p=self._p0, tx=tx / norm, tp=tp / norm, kind="start")
+            if self.monitor is not None:
+                pt.data = dict(self.monitor(pt.x, pt.p))
+            self.current = pt
+            return pt
         if self._t0 is None:
             tx_ref, tp_ref = np.zeros(self.n), float(s.direction)
             r = newton_solve(lambda x: self._linearise(x, self._p0)[:2],
@@ -357,12 +371,19 @@ class Tracker:
                 return pt
         return best
 
+    def _accept(self, pt: Point) -> None:
+        """Make ``pt`` the current point; problems with an ``accept(x, p)`` hook are told."""
+        self.current = pt
+        hook = getattr(self.problem, "accept", None)
+        if hook is not None:
+            hook(pt.x, pt.p)
+
     # ---- iteration -----------------------------------------------------------------
     def __iter__(self) -> Iterator[Point]:
         if self.current is None:
             yield self.start()
         s = self.settings
-        forced = sorted(set(float(v) for v in s.forced))
+        forced = sorted(set(float(v) for v in s.forced) - {s.p_min, s.p_max})  # bounds are located anyway
         while True:
             if self.steps >= s.max_steps:
                 self.stop_reason = f"maximum number of steps ({s.max_steps}) reached"
@@ -430,12 +451,12 @@ class Tracker:
                         found.append((f.ds, f, ev.stop, f"{ev.name}"))
             found.sort(key=lambda item: item[0])
             for _, pt, stop, reason in found:
-                self.current = pt
+                self._accept(pt)
                 yield pt
                 if stop:
                     self.stop_reason = reason
                     return
-            self.current = new
+            self._accept(new)
             yield new
             # step control
             if iters <= s.fast_iterations:
@@ -448,9 +469,9 @@ class Tracker:
 
 def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, monitor=None,
                  events: Sequence[Event] = (), callback: Callable[[Point], None] | None = None,
-                 tangent0=None):
+                 tangent0=None, exact_start: bool = False):
     """Trace a branch; returns ``(points, stop_reason)``. ``callback`` sees each point as it comes."""
-    tr = Tracker(problem, x0, p0, settings, monitor, events, tangent0)
+    tr = Tracker(problem, x0, p0, settings, monitor, events, tangent0, exact_start)
     points = []
     try:
         for pt in tr:

@@ -369,7 +369,7 @@ class _Outputs:
     def defect(self, x, p, z) -> float:
         """Max residual between collocation points, each equation relative to its scale.
 
-        Scales: force equations ``max(w, |F|/L)``, moment equations
+        Scales: force equations ``max(w, |F|/L, EI/L^3)``, moment equations
         ``max(|F|, EI/L^2)``, torque equation ``max(|phi_L|, 1)/L^2``.
         """
         model = self.model
@@ -377,7 +377,8 @@ class _Outputs:
         G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
         L, w, EI = model.rod.L, p[2], p[3]
         Fmax = float(np.sqrt((z[[11, 13, 15]] ** 2).sum(axis=0)).max())
-        scale = np.array([max(w, Fmax / L)] * 3 + [max(Fmax, EI / L**2)] * 2 + [max(abs(p[0]), 1.0) / L**2])
+        scale = np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
+                         + [max(abs(p[0]), 1.0) / L**2])
         return float(np.max(G / scale))
 
 

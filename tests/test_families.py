@@ -1,0 +1,106 @@
+"""Fold curves, branch switching and families on the rod."""
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import h5py
+import numpy as np
+import pytest
+
+import rodcont
+from rodcont.branch import fold_curve, trace
+from rodcont.cli import main
+from rodcont.family import sweep
+
+
+@pytest.fixture(scope="module")
+def g1_n15(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("fc") / "g1.h5")
+    trace(1.0, N=15, stretch_max=0.25, out=path)
+    return path
+
+
+def test_fold_curve_matches_one_parameter_traces(g1_n15, tmp_path):
+    """Points of the fold locus in (Phi, Gamma) at Gamma = 0.5 and 1.5 agree to 1e-8 with the
+    folds located by separate one-parameter traces at those Gamma (same mesh)."""
+    d = rodcont.load_branch(g1_n15)
+    out = str(tmp_path / "locus.h5")
+    res = fold_curve(d, 0, "gamma", 0.5, 1.5, out=out, forced=(0.75,))
+    pts = res["points"]
+    by_gamma = {round(q.p, 12): q for q in pts if q.kind in ("bound", "forced")}
+    for g in (0.5, 0.75, 1.5):
+        q = by_gamma[g]
+        ref = trace(g, N=15, stretch_max=q.data["stretch"] + 0.05).folds[0]
+        for name in ("phi_L", "stretch", "torque", "l0"):
+            assert q.data[name] == pytest.approx(ref[name], abs=1e-8), (g, name)
+    # the file: branch-file conventions plus a dataset named after the parameter
+    with h5py.File(out, "r") as f:
+        assert f.attrs["param"] == "gamma"
+        n = f["branch/phi_L"].shape[0]
+        for name in ("phi_L", "stretch", "torque", "l0", "gamma"):
+            assert f["branch"][name].shape == (n,)
+        g = f["branch/gamma"][()]
+        assert np.all(np.diff(g) > 0) and g[0] == pytest.approx(0.5) and g[-1] == pytest.approx(1.5)
+
+
+def test_fold_curve_in_a_stiffness(g1_n15):
+    """Continuing in EI (T fixed): at the ends of the range the fold is where a one-parameter trace puts it."""
+    d = rodcont.load_branch(g1_n15)
+    res = fold_curve(d, 0, "EI", 0.9, 1.1)
+    q = res["points"][-1]
+    assert q.kind == "bound" and q.p == pytest.approx(1.1)
+    rod = rodcont.RodParameters(EI=1.1)
+    ref = trace(1.0, rod, N=15, stretch_max=q.data["stretch"] + 0.05).folds[0]
+    assert q.data["phi_L"] == pytest.approx(ref["phi_L"], abs=1e-8)
+
+
+def test_fold_curve_cli_and_plot(g1_n15, tmp_path, capsys):
+    out = str(tmp_path / "fc.h5")
+    with pytest.raises(SystemExit) as exc:
+        main(["fold-curve", f"{g1_n15}:0", "--param", "gamma", "--range", "0.8", "1.2", "--out", out, "--quiet"])
+    assert exc.value.code == 0
+    png = str(tmp_path / "fc.png")
+    with pytest.raises(SystemExit) as exc:
+        main(["plot", g1_n15, out, "-o", png])
+    assert exc.value.code == 0 and os.path.getsize(png) > 10000
+    for bad in ([f"{g1_n15}:3", "--range", "0.8", "1.2"], [f"{g1_n15}:x", "--range", "0.8", "1.2"],
+                [f"{g1_n15}:0", "--range", "2", "3"], [f"{g1_n15}:0", "--range", "1.2", "0.8"],
+                [f"{g1_n15}:0", "--param", "zz", "--range", "0.8", "1.2"]):
+        with pytest.raises(SystemExit) as exc:
+            main(["fold-curve", *bad, "--out", str(tmp_path / "x.h5")])
+        assert exc.value.code == 2
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_switch_needs_a_branch_point(g1_n15, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["trace", "--start", f"{g1_n15}:F1", "--switch", "--out", str(tmp_path / "s.h5")])
+    assert exc.value.code == 2
+    assert "branch point" in capsys.readouterr().err
+
+
+def test_sweep_with_any_executor(tmp_path):
+    """The family through the API with a plain ThreadPoolExecutor (any concurrent.futures executor fits);
+    each branch equals a trace run on its own."""
+    with ThreadPoolExecutor(max_workers=2) as ex:
+        res = sweep([0.0, 1.0], str(tmp_path), executor=ex, stretch_max=0.2)
+    assert [r["gamma"] for r in res["branches"]] == [0.0, 1.0]
+    assert os.path.getsize(res["diagram"]) > 10000
+    for r in res["branches"]:
+        d = rodcont.load_branch(r["path"])
+        ref = trace(r["gamma"], stretch_max=0.2).folds[0]
+        assert d.folds["phi_L"][0] == pytest.approx(ref["phi_L"], abs=1e-10)
+
+
+def test_sweep_cli_processes(tmp_path, capsys):
+    out = tmp_path / "fam"
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--gamma", "0", "1", "--jobs", "2", "--phi-max", "12", "--out", str(out), "--quiet"])
+    assert exc.value.code == 0
+    text = capsys.readouterr().out
+    assert "parameter bound p_max = 12" in text
+    assert sorted(os.listdir(out)) == ["gamma_0.h5", "gamma_1.h5", "response_diagram.png"]
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--gamma", "1", "-50", "--out", str(tmp_path / "bad")])
+    assert exc.value.code == 2
+    assert not (tmp_path / "bad").exists()
