@@ -178,7 +178,7 @@ class Branch:
 
 
 def default_settings(**changes) -> ContinuationSettings:
-    s = ContinuationSettings(ds=0.05, ds_min=1e-6, ds_max=0.4, p_min=-1.0, p_max=40.0, max_steps=2000,
+    s = ContinuationSettings(ds=0.1, ds_min=1e-6, ds_max=0.5, p_min=-1.0, p_max=40.0, max_steps=2000,
                              newton_tol=1e-10, newton_max_iter=8, max_angle=0.3)
     for key, val in changes.items():
         setattr(s, key, val)
@@ -187,7 +187,7 @@ def default_settings(**changes) -> ContinuationSettings:
 
 def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 5, phi_max: float = 40.0,
           phi_min: float = -1.0, stretch_max: float | None = None, min_alignment: float = 0.05,
-          max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.05, ds_max: float = 0.4,
+          max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.1, ds_max: float = 0.5,
           ds_min: float = 1e-6,
           forced: Sequence[float] = (), start: tuple | None = None, switch: bool = False, out: str | None = None,
           callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:

@@ -188,9 +188,9 @@ class _Progress:
 @click.option("--stretch-max", type=float, default=None, callback=_finite("--stretch-max"),
               help="stop when the stretch reaches this value")
 @click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True)
-@click.option("--ds", type=float, default=0.05, show_default=True, callback=_positive("--ds"),
+@click.option("--ds", type=float, default=0.1, show_default=True, callback=_positive("--ds"),
               help="first pseudo-arclength step")
-@click.option("--ds-max", type=float, default=0.4, show_default=True, callback=_positive("--ds-max"))
+@click.option("--ds-max", type=float, default=0.5, show_default=True, callback=_positive("--ds-max"))
 @click.option("--ds-min", type=float, default=1e-6, show_default=True, callback=_positive("--ds-min"),
               help="the trace stops when the step must shrink below this")
 @click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True,
@@ -211,6 +211,9 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     bracketed. With --start the rod, Gamma and mesh come from the file.
     """
     from .branch import trace as run_trace
+    ctx = click.get_current_context()
+    if ds > ds_max and ctx.get_parameter_source("ds") == click.core.ParameterSource.DEFAULT:
+        ds = ds_max  # only --ds-max was given: start at it
     if not ds_min <= ds <= ds_max:
         raise UserError(f"need --ds-min <= --ds <= --ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
     if phi_min >= phi_max:

@@ -34,7 +34,11 @@ def response_diagram(branches: list[BranchData], path: str, title: str | None = 
             if f and len(f.get("index", [])):
                 ax.plot(f["stretch"], f["phi_L"], "o", ms=5, mfc="white", mec=c, mew=1.5)
             ax.plot(b.branch["stretch"][-1:], b.branch["phi_L"][-1:], "x", color=c, ms=6)
-        ax.set_xscale("symlog", linthresh=1e-3)
+        smin = min(float(np.min(b.branch["stretch"])) for b in ordinary)
+        if smin > 0:
+            ax.set_xscale("log")  # the stretch spans decades: from the sag to the loop
+        else:
+            ax.set_xscale("symlog", linthresh=1e-5, linscale=0.3)
         ax.set_xlabel("stretch  (ℓ − L) / L")
         ax.set_ylabel("end rotation  Φ = φ(L)  [rad]")
         ax.grid(True, alpha=0.3)
