@@ -144,7 +144,7 @@ def _initial_guess(T, w, EI, L, nodes):
 
 
 def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=1e-8,
-                         nodes=41, max_nodes=100000, max_halvings=6, verbose=False):
+                         nodes=41, mesh="fixed", max_nodes=100000, max_halvings=6, verbose=False):
     """Follow the twisted heavy beam branch by natural continuation in ``Phi``.
 
     Parameters
@@ -194,6 +194,13 @@ def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=
         return res, ok
 
     x, y, p = _initial_guess(T, w, EI, L, nodes)
+    x_fixed = x
+
+    def _next_guess(res):
+        if mesh == "fixed":
+            return x_fixed, res.sol(x_fixed), res.p
+        return res.x, res.y, res.p
+
     res = None
     phi_done = None
     for phi_target in phis:
@@ -209,14 +216,14 @@ def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=
                 trial, ok = solve(x, y, p, phi_try)
                 if ok:
                     res, phi_cur = trial, phi_try
-                    x, y, p = res.x, res.y, res.p
+                    x, y, p = _next_guess(res)
                 else:
                     halvings += 1
                     if halvings > max_halvings:
                         raise RuntimeError("natural continuation failed at Phi = %g (from %g): %s"
                                            % (phi_try, phi_cur, trial.message))
                     dphi /= 2
-        x, y, p = res.x, res.y, res.p
+        x, y, p = _next_guess(res)
         phi_done = phi_target
         out["phi_L"].append(phi_target)
         out["stretch"].append((res.y[13, -1] - L) / L)

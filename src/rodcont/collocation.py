@@ -226,6 +226,16 @@ class Collocation:
                 self.E_ends[:, self.jet_rows[i] + nu, self.index[i]] = sp_i.basis(ends, nu)
         self.n_bc = self.size - n * npts
         self._probe_dependence()
+        # All fields' local bases side by side, one row per active jet component, so that the
+        # collocation blocks of the Jacobian are one batched matrix product per linearisation:
+        # block_q = dG/dz_active(q) @ local[q]   ((n, na) @ (na, sum(k + m_i)) at each point q).
+        widths = [self.k + m for m in pb.orders]
+        starts = np.concatenate([[0], np.cumsum(widths)])
+        local = np.zeros((npts, nz, starts[-1]))
+        for i, m in enumerate(pb.orders):
+            local[:, self.jet_rows[i]:self.jet_rows[i + 1], starts[i]:starts[i + 1]] = self._local[i].transpose(1, 0, 2)
+        self._local_active = np.ascontiguousarray(local[:, self.active, :])
+        self._local_cols_all = np.concatenate(self._local_cols, axis=1)  # (npts, sum(k + m_i))
         self._build_pattern()
 
     # ---- structure (computed once) -------------------------------------------
@@ -263,10 +273,10 @@ class Collocation:
         n, npts = pb.n_fields, self.npts
         rows, cols = [], []
         q = np.arange(npts)
-        for i, m in enumerate(pb.orders):
-            r = q[:, None, None] * n + np.arange(n)[None, :, None]  # (npts, n, 1)
-            rows.append(np.broadcast_to(r, (npts, n, self.k + m)).ravel())
-            cols.append(np.broadcast_to(self._local_cols[i][:, None, :], (npts, n, self.k + m)).ravel())
+        width = self._local_cols_all.shape[1]
+        r = q[:, None, None] * n + np.arange(n)[None, :, None]  # (npts, n, 1)
+        rows.append(np.broadcast_to(r, (npts, n, width)).ravel())
+        cols.append(np.broadcast_to(self._local_cols_all[:, None, :], (npts, n, width)).ravel())
         for j in self.free_index:  # dense free-parameter columns of the collocation rows
             rows.append(np.arange(n * npts))
             cols.append(np.full(n * npts, j))
@@ -352,12 +362,7 @@ class Collocation:
         z = self.jets(x)
         G, dGa = self._pointwise_jacobian(self.S, z, pf, self.active)
         n, npts, nz = G.shape[0], self.npts, pb.jet_size
-        dG = np.zeros((n, nz, npts))
-        dG[:, self.active] = dGa
-        data = []
-        for i in range(pb.n_fields):
-            A = dG[:, self.jet_rows[i]:self.jet_rows[i + 1], :]  # (n, m+1, npts)
-            data.append(np.einsum("ejq,jqb->qeb", A, self._local[i]).ravel())
+        data = [np.matmul(dGa.transpose(2, 0, 1), self._local_active).ravel()]
         za, zb = self.end_jets(x)
         g = np.atleast_1d(pb.bc(za, zb, pf))
         free = [int(j) for j in pb.free]
