@@ -48,8 +48,23 @@ Solver settings (the "typical user" baseline)
 * First step (``Phi = phis[0]``) from a crude guess: straight rod, the
   sagging beam's shear force ``F3 = w l0 (t - 1/2)`` and its bending moment,
   on ``nodes`` uniform nodes.  Every later step starts from the previous
-  mesh and solution (``res.x, res.y, res.p``); the mesh only grows when
-  ``solve_bvp`` refines it.
+  solution.  Two ways of passing it on (``mesh``):
+
+  - ``"fixed"`` (default): the previous solution is evaluated on the initial
+    uniform mesh (``res.sol(x0), res.p``), and ``solve_bvp`` refines that
+    mesh again as it needs;
+  - ``"previous"``: the previous mesh and values (``res.x, res.y, res.p``)
+    are passed on.  This is pathological with ``solve_bvp``: on a load step
+    of 0.5 its Newton solver (at most 4 Jacobians and 8 iterations per mesh)
+    does not meet its termination test on the first mesh, the residual is
+    then above ``tol`` on nearly every interval and nearly every interval is
+    split; the mesh never coarsens, so it about doubles at every load step
+    (``nodes = 41``, ``tol = 1e-8``: 481 nodes at Phi = 0, 53445 by
+    Phi = 3.5, then ``max_nodes = 1e5`` stops some steps, which are halved,
+    96169 at Phi = 13) and the Gamma = 1 run takes minutes (about 500 s
+    here) instead of seconds (about 2.4 s with ``"fixed"``).
+    Kept only to document that trap.
+
 * If a step fails, the increment in ``Phi`` is halved (up to ``max_halvings``
   times) from the last converged solution: what a user would do near the
   fold.  Every ``solve_bvp`` call is counted, failed ones included.
@@ -144,7 +159,7 @@ def _initial_guess(T, w, EI, L, nodes):
 
 
 def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=1e-8,
-                         nodes=41, mesh="fixed", max_nodes=100000, max_halvings=6, verbose=False):
+                         nodes=101, mesh="fixed", max_nodes=100000, max_halvings=6, verbose=False):
     """Follow the twisted heavy beam branch by natural continuation in ``Phi``.
 
     Parameters
@@ -154,7 +169,9 @@ def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=
         crude straight-rod guess, each next one from the previous solution.
     w, EI, GJ, EA, L : weight per unstressed length, stiffnesses, span.
     tol : ``solve_bvp`` tolerance (``bc_tol = tol``).
-    nodes : uniform nodes of the initial mesh (the mesh then only grows).
+    nodes : uniform nodes of the initial mesh (``solve_bvp`` refines it).
+    mesh : ``"fixed"`` (previous solution interpolated on the initial mesh,
+        default) or ``"previous"`` (previous mesh reused; see module doc).
     max_nodes : passed to ``solve_bvp``.
     max_halvings : on a failed step, halve the increment in ``Phi`` at most
         this many times before giving up (``RuntimeError``).
@@ -170,8 +187,11 @@ def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=
     the vectorised right-hand side, finite-difference Jacobians included),
     ``max_nodes_used``, ``total_nodes`` (sum of the mesh sizes over all
     ``solve_bvp`` calls), ``elapsed`` (seconds), ``tol``, ``jacobian``
-    (``'finite-difference'``) and ``bvp`` (last ``solve_bvp`` result).
+    (``'finite-difference'``), ``initial_nodes`` and ``bvp`` (last
+    ``solve_bvp`` result).
     """
+    if mesh not in ("fixed", "previous"):
+        raise ValueError("mesh must be 'fixed' or 'previous'")
     phis = np.asarray(phis, dtype=float)
     T = gamma * w * L
     counter = [0]
@@ -238,7 +258,7 @@ def natural_continuation(gamma, phis, w=10., EI=1., GJ=0.75, EA=255., L=1., tol=
     result.update(n_solve_bvp=n_calls, n_failed=n_failed, n_fun_evals=counter[0],
                   max_nodes_used=int(result["nodes"].max()) if len(phis) else 0,
                   total_nodes=total_nodes, elapsed=time.perf_counter() - t0, tol=tol,
-                  jacobian="finite-difference", bvp=res)
+                  jacobian="finite-difference", initial_nodes=nodes, bvp=res)
     return result
 
 
@@ -255,10 +275,12 @@ if __name__ == "__main__":
           % (elapsed, phis.size, phis[-1], r["n_solve_bvp"], r["n_failed"], r["n_fun_evals"],
              r["jacobian"], r["tol"]))
     print("nodes: initial %d, final %d, max %d, summed over calls %d"
-          % (41, r["nodes"][-1], r["max_nodes_used"], r["total_nodes"]))
+          % (r["initial_nodes"], r["nodes"][-1], r["max_nodes_used"], r["total_nodes"]))
     for phi in (0.0, 10.0, 13.0):
         k = int(np.argmin(np.abs(r["phi_L"] - phi)))
         print("Phi = %5.2f: stretch = %.10e  torque = %.10f  l0 = %.10f"
               % (r["phi_L"][k], r["stretch"][k], r["torque"][k], r["l0"][k]))
     print("reference (PROBLEM.md): Phi = 0: stretch 9.2449753e-4, l0 0.96282043; "
           "Phi = 10: stretch 3.1059074e-3")
+    print("reference (shooting, tests/lagrangian_reference.py, twisted_solution(1.0, 13.0)): "
+          "Phi = 13: stretch 6.2398373230e-02, torque 9.2541995380, l0 1.0225808255")

@@ -35,6 +35,7 @@ class RodSystem:
         self.rod = rod
         self.model = EulerianRod(rod)
         self.disc: Collocation = self.model.discretise(N, k)
+        self.model.output_evaluator(self.disc)  # set-up work outside the traces
         self.gamma = float(gamma)
         self.base = self.model.params(phi_L, T=rod.tension(gamma))
         self.index = PARAMS.index(param)

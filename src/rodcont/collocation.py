@@ -66,23 +66,46 @@ class SplineSpace:
             [np.full(self.order, b[0]), np.repeat(b[1:-1], self.k), np.full(self.order, b[-1])]
         )
         self.dim = (len(b) - 1) * self.k + self.m
-        self._basis = BSpline(self.knots, np.eye(self.dim), self.degree, extrapolate=False)
 
     def basis(self, x: np.ndarray, nu: int = 0) -> np.ndarray:
         """Dense ``(len(x), dim)`` matrix of the ``nu``-th derivatives of all basis functions."""
-        x = np.clip(np.asarray(x, dtype=float), self.breakpoints[0], self.breakpoints[-1])
+        return self.basis_sparse(x, nu).toarray()
+
+    def basis_sparse(self, x: np.ndarray, nu: int = 0) -> sp.csr_matrix:
+        """Sparse ``(len(x), dim)`` matrix of the ``nu``-th derivatives of all basis functions.
+
+        ``x`` is clipped to the interval. Derivatives through the B-spline
+        derivative recurrence: the coefficients of ``d/dx sum c_j B_j`` in the
+        basis of degree ``d - 1`` on ``t[1:-1]`` are
+        ``d (c_{j+1} - c_j) / (t_{j+d+1} - t_{j+1})`` (de Boor), so
+        ``D_nu = design_matrix(x, degree - nu) @ M_nu ... M_1``: ``O(len(x) k)`` work.
+        """
+        x = np.clip(np.atleast_1d(np.asarray(x, dtype=float)), self.breakpoints[0], self.breakpoints[-1])
         if nu > self.degree:
-            return np.zeros((x.size, self.dim))
-        return np.nan_to_num(self._basis(x, nu))
+            return sp.csr_matrix((x.size, self.dim))
+        t, d = self.knots, self.degree
+        D = sp.identity(self.dim, format="csr")
+        for _ in range(nu):
+            ncur = len(t) - d - 1
+            denom = t[d + 1:d + ncur] - t[1:ncur]
+            scale = np.divide(d, denom, out=np.zeros_like(denom), where=denom > 0)
+            j = np.arange(ncur - 1)
+            M = sp.csr_matrix((np.concatenate([-scale, scale]), (np.concatenate([j, j]), np.concatenate([j, j + 1]))),
+                              shape=(ncur - 1, ncur))
+            D = M @ D
+            t, d = t[1:-1], d - 1
+        B = sp.csr_matrix(BSpline.design_matrix(x, t, d))
+        return (B @ D).tocsr()
 
     def spline(self, coefficients: np.ndarray) -> BSpline:
         return BSpline(self.knots, np.asarray(coefficients), self.degree, extrapolate=False)
 
     def interpolant_coefficients(self, f: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-        """Coefficients of the spline interpolating ``f`` at Greville-like points (least squares)."""
-        x = np.linspace(self.breakpoints[0], self.breakpoints[-1], 3 * self.dim)
-        x = np.union1d(x, self.breakpoints)
-        return np.linalg.lstsq(self.basis(x), f(x), rcond=None)[0]
+        """Coefficients of the least-squares fit of ``f`` on 3 points per basis function (sparse normal equations)."""
+        x = np.union1d(np.linspace(self.breakpoints[0], self.breakpoints[-1], 3 * self.dim), self.breakpoints)
+        A = self.basis_sparse(x).tocsc()
+        y = np.broadcast_to(np.asarray(f(x), dtype=float), x.shape)
+        return spla.spsolve((A.T @ A).tocsc(), A.T @ y)
 
 
 def gauss_points(breakpoints: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -209,7 +232,7 @@ class Collocation:
         for i, sp_i in enumerate(self.spaces):
             m = pb.orders[i]
             c = interval[:, None] * k + np.arange(k + m)[None, :]  # (npts, k+m) local -> field index
-            vals = np.stack([np.take_along_axis(sp_i.basis(self.S, nu), c, axis=1) for nu in range(m + 1)])
+            vals = np.stack([_take_local(sp_i.basis_sparse(self.S, nu), c) for nu in range(m + 1)])
             self._local.append(vals)  # (m+1, npts, k+m)
             self._local_cols.append(self.index[i][c])
             for nu in range(m + 1):
@@ -409,9 +432,8 @@ class Collocation:
 
     def evaluation_matrix(self, S: np.ndarray, i: int, nu: int = 0) -> sp.csr_matrix:
         """Sparse ``(len(S), size)`` matrix mapping ``x`` to ``d^nu u_i / dS^nu`` at ``S``."""
-        M = np.zeros((np.size(S), self.size))
-        M[:, self.index[i]] = self.spaces[i].basis(np.atleast_1d(S), nu)
-        out = sp.csr_matrix(M)
+        B = self.spaces[i].basis_sparse(np.atleast_1d(S), nu).tocoo()
+        out = sp.csr_matrix((B.data, (B.row, self.index[i][B.col])), shape=(B.shape[0], self.size))
         out.eliminate_zeros()
         return out
 
@@ -427,6 +449,15 @@ class Collocation:
     def integrate(self, values: np.ndarray) -> float:
         """Gauss rule of the mesh applied to values at the collocation points."""
         return float(np.dot(self.weights, values))
+
+
+def _take_local(B: sp.csr_matrix, cols: np.ndarray) -> np.ndarray:
+    """Dense ``B[q, cols[q, :]]`` for each row ``q`` (the basis functions nonzero at point ``q``)."""
+    B = B.tocsr()
+    out = np.zeros(cols.shape)
+    for a in range(cols.shape[1]):
+        out[:, a] = np.asarray(B[np.arange(cols.shape[0]), cols[:, a]]).ravel()
+    return out
 
 
 def _key(rows, cols, n):

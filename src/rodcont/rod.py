@@ -270,10 +270,14 @@ class EulerianRod:
         ``torque`` is the mean over the mesh points (superconvergent), ``torque_spread``
         its range there; ``l, l0`` use the Gauss rule of the mesh (error O(h^2k)).
         """
+        return self.output_evaluator(disc, samples)(x, p)
+
+    def output_evaluator(self, disc: Collocation, samples: int = 8) -> "_Outputs":
+        """The evaluation matrices behind :meth:`outputs`, built once per discretisation."""
         out = getattr(disc, "_rod_outputs", None)
         if out is None or out.model is not self or out.samples != samples:
             out = disc._rod_outputs = _Outputs(self, disc, samples)
-        return out(x, p)
+        return out
 
     def torque_profile(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """``m = GJ J1 (phi' + tau_q)`` at the collocation points."""
