@@ -303,6 +303,10 @@ def _summary(data, elapsed):
     click.echo(f"stop reason  {data.attrs.get('stop_reason')}")
     click.echo(f"time         {elapsed:.3f} s")
     _fold_table(data)
+    bp = data.branch_points
+    for j in range(len(bp.get("index", []))):
+        click.echo(f"BP{j + 1:<3d} {bp['index'][j]:6d} {bp['phi_L'][j]:18.12f} {bp['stretch'][j]:18.12f}  "
+                   f"(follow the other branch: --start FILE:BP{j + 1} --switch)")
 
 
 def _fold_table(data):
@@ -485,6 +489,13 @@ def main(argv=None):
     except KeyboardInterrupt:
         click.echo("rodcont: interrupted", err=True)
         sys.exit(130)
+    except (MemoryError, OSError) as exc:
+        click.echo(f"rodcont: error: {type(exc).__name__}: {exc}", err=True)
+        sys.exit(1)
+    except Exception as exc:  # a bug, not a user error: one line, and say so
+        click.echo(f"rodcont: error: unexpected failure ({type(exc).__name__}: {exc}); please report it "
+                   f"with the command line", err=True)
+        sys.exit(1)
     sys.exit(rv if isinstance(rv, int) else 0)
 
 
