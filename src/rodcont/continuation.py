@@ -347,7 +347,9 @@ class Tracker:
                 mm = m + nudge * ds_hi
                 c = self._correct(base, mm)
                 if c is not None:
-                    pt = self._make_point(c[0], c[1], base, mm, c[2], kind=kind)
+                    # a fold's test function is the tangent itself: it needs the tangent at the
+                    # converged point; the others read the corrector's last factorisation
+                    pt = self._make_point(c[0], c[1], base, mm, c[2], kind=kind, lu=None if kind == "fold" else c[3])
                 if pt is not None:
                     m = mm
                     break
