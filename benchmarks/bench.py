@@ -28,7 +28,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "src"))
 
 import rodcont  # noqa: E402
-from rodcont.branch import RodSystem, solve_equilibrium, trace  # noqa: E402
+from rodcont.branch import solve_equilibrium, trace  # noqa: E402
 
 
 def best_of(fn, repeats: int, inner: int) -> float:

@@ -10,7 +10,7 @@ from rodcont.bifurcation import FoldProblem, bifurcating_direction
 from rodcont.collocation import BVProblem, Collocation
 from rodcont.continuation import ContinuationSettings, Tracker, continuation
 
-from test_continuation import BRATU_FOLD, bratu_exact_fold
+from test_continuation import bratu_exact_fold
 
 
 class BratuTwoParam:

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from scipy.optimize import brentq
 
 from rodcont.collocation import BVProblem, Collocation
-from rodcont.continuation import ContinuationSettings, Event, Tracker, bordered, continuation, det_sign_log, factorise
+from rodcont.continuation import ContinuationSettings, Event, bordered, continuation, det_sign_log, factorise
 
 BRATU_FOLD = 3.513830719125  # lambda* of u'' + lambda e^u = 0, u(0) = u(1) = 0
 

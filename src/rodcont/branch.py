@@ -391,7 +391,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
     X0 = np.append(x0, phi0)
     parts = []
     reasons = []
-    for direction, bound in ((-1, lo), (1, hi)):
+    for direction in (-1, 1):
         s = ContinuationSettings(ds=ds, ds_min=min(1e-7, ds), ds_max=ds_max, direction=direction,
                                  p_min=lo if direction < 0 else -math.inf, p_max=hi if direction > 0 else math.inf,
                                  max_steps=max_steps, detect_folds=True, detect_branch_points=False,

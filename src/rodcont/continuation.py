@@ -36,7 +36,6 @@ iteration on a test function along the arc from the last regular point:
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, Sequence
 

@@ -21,7 +21,7 @@ function of the local jet, so the complex step gives the exact Jacobian.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, asdict, field
+from dataclasses import dataclass, asdict
 
 import numpy as np
 import scipy.sparse as sp
