@@ -70,6 +70,10 @@ def test_fold_curve_cli_and_plot(g1_n15, tmp_path, capsys):
             main(["fold-curve", *bad, "--out", str(tmp_path / "x.h5")])
         assert exc.value.code == 2
     assert not (tmp_path / "x.h5").exists()
+    with pytest.raises(SystemExit) as exc:  # a fold curve is not a branch to restart from
+        main(["trace", "--start", f"{out}:0", "--out", str(tmp_path / "y.h5")])
+    assert exc.value.code == 2
+    assert not (tmp_path / "y.h5").exists()
 
 
 def test_switch_needs_a_branch_point(g1_n15, tmp_path, capsys):

@@ -222,6 +222,9 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     if start is not None:
         path, label = _split_label(start)
         data = _load(path)
+        if data.attrs.get("param", "phi_L") != "phi_L":
+            raise UserError(f"{path} is a fold curve in {data.attrs['param']}, not a branch in phi_L: "
+                            f"it cannot start a trace")
         from .branchfile import BranchFileError
         try:
             pt = data.point(label)
