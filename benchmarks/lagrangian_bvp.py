@@ -61,8 +61,9 @@ Solver settings (the "typical user" baseline)
     split; the mesh never coarsens, so it about doubles at every load step
     (``nodes = 41``, ``tol = 1e-8``: 481 nodes at Phi = 0, 53445 by
     Phi = 3.5, then ``max_nodes = 1e5`` stops some steps, which are halved,
-    96169 at Phi = 13) and the Gamma = 1 run takes minutes (about 500 s
-    here) instead of seconds (about 2.4 s with ``"fixed"``).
+    96169 at Phi = 13; ``nodes = 101``: 88495 by Phi = 4) and the Gamma = 1
+    run takes minutes (500 to 780 s here, 73 calls of which 22 fail) instead
+    of seconds (about 2.4 s with ``"fixed"``), for the same numbers.
     Kept only to document that trap.
 
 * If a step fails, the increment in ``Phi`` is halved (up to ``max_halvings``

@@ -122,6 +122,33 @@ def uniform_mesh(a: float, b: float, N: int) -> np.ndarray:
     return np.linspace(a, b, int(N) + 1)
 
 
+def equidistribute(breakpoints: np.ndarray, indicator: np.ndarray, order: int, floor: float = 0.05,
+                   ratio: float = 2.0, relax: float = 0.5) -> np.ndarray:
+    """A mesh with the same number of subintervals on which ``indicator`` would be equal.
+
+    ``indicator[i]`` is an error estimate on subinterval ``i`` behaving like
+    ``C_i h_i^order``; the new sizes follow the density ``C^(1/order)``
+    (floored at ``floor`` of its maximum, neighbours within ``ratio``), and the
+    new mesh is ``relax`` of the way from the old one to the equidistributed one.
+    """
+    b = np.asarray(breakpoints, float)
+    h = np.diff(b)
+    d = np.maximum(np.asarray(indicator, float), 1e-300)
+    rho = (d / h**order) ** (1.0 / order)
+    rho = np.maximum(rho, floor * rho.max())
+    for _ in range(len(rho)):  # limit the ratio of neighbouring densities
+        before = rho.copy()
+        rho[1:] = np.maximum(rho[1:], rho[:-1] / ratio)
+        rho[:-1] = np.maximum(rho[:-1], rho[1:] / ratio)
+        if np.array_equal(before, rho):
+            break
+    cum = np.concatenate([[0.0], np.cumsum(rho * h)])
+    target = np.interp(np.linspace(0.0, cum[-1], b.size), cum, b)
+    new = (1 - relax) * b + relax * target
+    new[0], new[-1] = b[0], b[-1]
+    return new
+
+
 # --------------------------------------------------------------------------
 # Problem protocol
 # --------------------------------------------------------------------------
@@ -445,6 +472,28 @@ class Collocation:
         if self.n_free:
             x[self.free_index] = free_values
         return x
+
+    def transfer(self, x: np.ndarray, source: "Collocation") -> np.ndarray:
+        """Unknown vector on this mesh closest to ``source``'s solution ``x``, jets included.
+
+        Least squares on the values and derivatives up to each field's order
+        (derivative ``j`` weighted by ``h_min^j``) at the Gauss points of both
+        meshes: the residual involves the highest derivatives, so matching
+        values alone is not enough on a graded mesh.
+        """
+        b = self.breakpoints
+        S = np.union1d(np.union1d(gauss_points(b, min(self.k + 3, 10))[0], b),
+                       gauss_points(source.breakpoints, min(source.k + 3, 10))[0])
+        hmin = float(np.min(np.diff(b)))
+        out = np.zeros(self.size)
+        for i, m in enumerate(self.problem.orders):
+            rows = [hmin**j * self.spaces[i].basis_sparse(S, j) for j in range(m + 1)]
+            rhs = [hmin**j * source.evaluate(x, S, i, j) for j in range(m + 1)]
+            A = sp.vstack(rows).tocsc()
+            out[self.index[i]] = spla.spsolve((A.T @ A).tocsc(), A.T @ np.concatenate(rhs))
+        if self.n_free:
+            out[self.free_index] = x[source.free_index]
+        return out
 
     def integrate(self, values: np.ndarray) -> float:
         """Gauss rule of the mesh applied to values at the collocation points."""

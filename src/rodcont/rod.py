@@ -370,20 +370,28 @@ class _Outputs:
                     torque_spread=float(np.ptp(m_mesh)))
 
 
+    def interval_defect(self, x, p) -> np.ndarray:
+        """The relative defect of :meth:`defect`, its maximum on each subinterval."""
+        z = self.disc.jets(x)
+        zc = (self.E_check @ x).reshape(z.shape[0], -1)
+        G = np.abs(self.model.residual(self.S_check, zc, p)) / self._scales(p, z)[:, None]
+        return G.max(axis=0).reshape(self.disc.N, -1).max(axis=1)
+
+    def _scales(self, p, z):
+        L, w, EI = self.model.rod.L, p[2], p[3]
+        Fmax = float(np.sqrt((z[[11, 13, 15]] ** 2).sum(axis=0)).max())
+        return np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
+                        + [max(abs(p[0]), 1.0) / L**2])
+
     def defect(self, x, p, z) -> float:
         """Max residual between collocation points, each equation relative to its scale.
 
         Scales: force equations ``max(w, |F|/L, EI/L^3)``, moment equations
         ``max(|F|, EI/L^2)``, torque equation ``max(|phi_L|, 1)/L^2``.
         """
-        model = self.model
         zc = (self.E_check @ x).reshape(z.shape[0], -1)
-        G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
-        L, w, EI = model.rod.L, p[2], p[3]
-        Fmax = float(np.sqrt((z[[11, 13, 15]] ** 2).sum(axis=0)).max())
-        scale = np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
-                         + [max(abs(p[0]), 1.0) / L**2])
-        return float(np.max(G / scale))
+        G = np.abs(self.model.residual(self.S_check, zc, p)).max(axis=1)
+        return float(np.max(G / self._scales(p, z)))
 
 
 def helical_waves(S, D1, D2, D1p, D2p) -> int:
