@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import rodcont
-from rodcont.branch import RodSystem
+from rodcont.branch import point_system
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FILES = sorted(glob.glob(os.path.join(ROOT, "branches", "gamma_*.h5")))
@@ -40,8 +40,8 @@ def test_stored_branch_is_consistent(path):
     assert b["kind"][i] == "fold"
     assert b["phi_L"][i] == pytest.approx(np.max(b["phi_L"][: i + 3]), abs=1e-12)  # a maximum of Phi
     assert abs(b["dphi_ds"][i]) < 1e-9
-    sysm = RodSystem(d.rod, d.gamma, N=int(d.attrs["N"]), k=int(d.attrs["k"]))
     for j in (0, i, len(d) - 1):
+        sysm = point_system(d, j)
         x, ph = b["coefficients"][j], b["phi_L"][j]
         assert np.max(np.abs(sysm.residual(x, ph))) < 1e-8
         o = sysm.outputs(x, ph)

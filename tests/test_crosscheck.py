@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import rodcont
-from rodcont.branch import RodSystem, trace
+from rodcont.branch import point_system, trace
 
 import lagrangian_reference as lag
 
@@ -68,12 +68,11 @@ def test_torque_constant_and_equilibrium_along_stored_branches(path):
     and tighter for the torques below 9 of Gamma <= 5; the Gamma = 10 branch, torque 21, reaches
     1.0e-10 (5e-12 relative). Points near the accuracy guard are flagged by their defect."""
     d = rodcont.load_branch(path)
-    sysm = RodSystem(d.rod, d.gamma, N=int(d.attrs["N"]), k=int(d.attrs["k"]))
     b = d.branch
     resolved = b["defect"] < 1e-4
     assert resolved.sum() >= 0.6 * len(d)
     for i in range(len(d)):
-        o = sysm.outputs(b["coefficients"][i], b["phi_L"][i])
+        o = point_system(d, i).outputs(b["coefficients"][i], b["phi_L"][i])
         if resolved[i]:
             assert o["torque_spread"] < 1e-11 * (1 + abs(o["torque"])), (i, o["torque_spread"], o["torque"])
         else:
@@ -86,9 +85,9 @@ def test_stored_points_satisfy_kirchhoff_equations():
     integrating paper eqs 3-6 from S = 0 lands on the clamp at S = L."""
     from test_rod import _end_state
     d = rodcont.load_branch(os.path.join(ROOT, "branches", "gamma_1.h5"))
-    sysm = RodSystem(d.rod, d.gamma, N=int(d.attrs["N"]), k=int(d.attrs["k"]))
     idx = [i for i in range(0, len(d), 5) if d.branch["defect"][i] < 1e-4]
     for i in idx:
+        sysm = point_system(d, i)
         x, ph = d.branch["coefficients"][i], d.branch["phi_L"][i]
         eq = rodcont.Equilibrium(sysm.outputs(x, ph), x, sysm, None)
         r0, D0, F0, M0 = _end_state(eq)

@@ -16,7 +16,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .collocation import Collocation, NewtonResult
+from .collocation import Collocation, NewtonResult, equidistribute
 from .continuation import ContinuationSettings, Event, Point, Tracker, StopContinuation
 from .rod import EulerianRod, RodParameters, PARAMS
 
@@ -31,15 +31,21 @@ class RodSystem:
     """
 
     def __init__(self, rod: RodParameters, gamma: float, N: int = 15, k: int = 5, param: str = "phi_L",
-                 phi_L: float = 0.0):
+                 phi_L: float = 0.0, breakpoints=None):
         self.rod = rod
         self.model = EulerianRod(rod)
-        self.disc: Collocation = self.model.discretise(N, k)
+        self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
         self.model.output_evaluator(self.disc)  # set-up work outside the traces
         self.gamma = float(gamma)
         self.base = self.model.params(phi_L, T=rod.tension(gamma))
         self.index = PARAMS.index(param)
         self.param = param
+
+    def with_mesh(self, breakpoints) -> "RodSystem":
+        """The same rod and parameters on another partition (same N and k)."""
+        new = RodSystem(self.rod, self.gamma, self.disc.N, self.disc.k, self.param, breakpoints=breakpoints)
+        new.base = self.base.copy()
+        return new
 
     def params(self, value: float) -> np.ndarray:
         p = self.base.copy()
@@ -139,6 +145,7 @@ class Branch:
     table: dict = field(default_factory=lambda: {name: [] for name in OUTPUTS + ("arclength", "kind")})
     coefficients: list = field(default_factory=list)
     tangents: list = field(default_factory=list)
+    meshes: list = field(default_factory=list)  # breakpoints of each point
     stop_reason: str = ""
     elapsed: float = 0.0
     steps: int = 0
@@ -147,7 +154,8 @@ class Branch:
     def __len__(self) -> int:
         return len(self.coefficients)
 
-    def add(self, pt: Point) -> None:
+    def add(self, pt: Point, breakpoints: np.ndarray | None = None) -> None:
+        self.meshes.append(breakpoints)
         for name in OUTPUTS:
             self.table[name].append(pt.data[name])
         self.table["arclength"].append(pt.arclength)
@@ -191,7 +199,8 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
           max_defect: float = 1e-2, max_steps: int = 2000, ds: float = 0.1, ds_max: float = 0.5,
           ds_min: float = 1e-6,
           forced: Sequence[float] = (), start: tuple | None = None, switch: bool = False, out: str | None = None,
-          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
+          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None,
+          adapt: bool = False, breakpoints=None) -> Branch:
     """Trace the branch of the twisted heavy rod in ``phi_L`` from ``phi_L = 0`` (or ``start``).
 
     Stops at ``phi_max``/``phi_min``, at ``stretch_max``, where ``min d3.K3``
@@ -201,7 +210,15 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     or when the step size collapses; each guard is located exactly and
     ``branch.stop_reason`` says which. ``start = (x, phi_L, direction or None)``
     restarts from a stored point, ``direction = (dx, dphi)`` the way to go on; with
-    ``switch`` the start is a branch point and the trace leaves it along the other branch. ``out``: branch file written as the trace goes.
+    ``switch`` the start is a branch point and the trace leaves it along the other branch.
+    ``out``: branch file written as the trace goes. ``breakpoints``: the partition to
+    start on (default uniform, ``N`` subintervals).
+
+    ``adapt``: when the defect reaches ``max_defect / 10`` the ``N`` breakpoints are
+    moved to equidistribute it (:func:`rodcont.collocation.equidistribute`), the
+    point and its tangent are transferred to the new mesh and the trace goes on
+    there; each stored point keeps its own breakpoints. When moving the mesh no
+    longer reduces the defect (by half), the trace goes on to the accuracy guard.
     """
     rod = rod or RodParameters()
     _check_finite(gamma=gamma, phi_max=phi_max, phi_min=phi_min, min_alignment=min_alignment, ds=ds,
@@ -212,7 +229,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
         raise ValueError("max_defect must be positive")
     if stretch_max is not None:
         _check_finite(stretch_max=stretch_max)
-    sysm = RodSystem(rod, gamma, N, k)
+    sysm = RodSystem(rod, gamma, N, k, breakpoints=breakpoints)
     if settings is None:
         settings = default_settings(ds=ds, ds_max=ds_max, ds_min=ds_min, p_min=phi_min, p_max=phi_max,
                                     max_steps=max_steps, forced=tuple(forced))
@@ -248,14 +265,51 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
         if start is None or t0 is None:
             raise ValueError("switch needs a start point with its incoming direction")
         t0 = switch_direction(sysm, np.asarray(x0, float), float(p0), t0, settings)
-    tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=events, tangent0=t0, exact_start=switch)
+    remesh_at = max_defect / 10 if adapt else None
     t_start = time.perf_counter()
+    arc0 = 0.0
+    steps = iterations = 0
+    tracker = None
+    exact = switch
     try:
-        for pt in tracker:
-            recorder.add(pt)
-            if callback is not None:
-                callback(pt)
-        reason = tracker.stop_reason
+        while True:
+            seg_events = list(events)
+            if remesh_at is not None:
+                seg_events.append(Event(REMESH, lambda q: 1.0 - q.data["defect"] / remesh_at, stop=True, tol=1e-3))
+            tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=seg_events, tangent0=t0,
+                              exact_start=exact)
+            first = tracker.start()
+            if arc0 > 0 and remesh_at is not None and first.data["defect"] > 0.5 * last.data["defect"]:
+                # moving the mesh no longer pays: go on where we were, to the accuracy guard
+                sysm, remesh_at = previous, None
+                tracker = Tracker(sysm, last.x, last.p, settings, monitor=sysm.outputs, events=events,
+                                  tangent0=(last.tx, last.tp))
+                first = tracker.start()
+            if arc0 == 0.0:
+                first.arclength = 0.0
+                recorder.add(first, sysm.disc.breakpoints)
+                if callback is not None:
+                    callback(first)
+            last = first
+            for pt in tracker:
+                pt.arclength += arc0
+                recorder.add(pt, sysm.disc.breakpoints)
+                if callback is not None:
+                    callback(pt)
+                last = pt
+            steps += tracker.steps
+            iterations += tracker.newton_iterations
+            if tracker.stop_reason != REMESH:
+                reason = tracker.stop_reason
+                break
+            # move the mesh, carry the point and its tangent over
+            ev = sysm.model.output_evaluator(sysm.disc)
+            d = ev.interval_defect(last.x, sysm.params(last.p))
+            previous = sysm
+            sysm = sysm.with_mesh(equidistribute(sysm.disc.breakpoints, d, order=sysm.disc.k + 1))
+            x0, p0 = sysm.disc.transfer(last.x, previous.disc), last.p
+            t0 = (sysm.disc.transfer(last.tx, previous.disc), last.tp)
+            exact, arc0 = False, last.arclength
     except StopContinuation as exc:
         reason = str(exc)
     except KeyboardInterrupt:
@@ -266,11 +320,17 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
         raise
     finally:
         branch.stop_reason = reason if "reason" in locals() else "interrupted"
-        branch.steps = tracker.steps
-        branch.newton_iterations = tracker.newton_iterations
+        if tracker is not None and tracker.stop_reason == "":
+            steps += tracker.steps
+            iterations += tracker.newton_iterations
+        branch.steps = steps
+        branch.newton_iterations = iterations
         branch.elapsed = time.perf_counter() - t_start
         recorder.close(branch.stop_reason)
     return branch
+
+
+REMESH = "remesh: the defect reached max_defect / 10"
 
 
 class _Recorder:
@@ -281,12 +341,12 @@ class _Recorder:
         self.branch, self.writer = branch, writer
         self.pending: list[int] = []
 
-    def add(self, pt: Point) -> None:
+    def add(self, pt: Point, breakpoints: np.ndarray) -> None:
         b = self.branch
-        b.add(pt)
+        b.add(pt, breakpoints)
         i = len(b) - 1
         if self.writer is not None:
-            self.writer.add(pt.data | {"arclength": pt.arclength, "dphi_ds": pt.tp}, pt.kind, pt.x)
+            self.writer.add(pt.data | {"arclength": pt.arclength, "dphi_ds": pt.tp}, pt.kind, pt.x, breakpoints)
         if pt.kind == "fold":
             self.pending.append(i)
         else:
@@ -445,3 +505,14 @@ def switch_direction(sysm: RodSystem, x: np.ndarray, phi_L: float, direction: tu
     tr = Tracker(sysm, x, phi_L, settings)
     tx, tp = bifurcating_direction(J, Fp, np.asarray(direction[0], float), float(direction[1]), tr.wx, tr.wp)
     return tx, tp
+
+
+def point_system(data, i: int, _cache: dict = {}) -> RodSystem:
+    """The :class:`RodSystem` a stored point ``i`` of a loaded branch file lives on (its own mesh)."""
+    b = np.asarray(data.point(i)["breakpoints"], float)
+    key = (data.path, float(data.gamma), b.tobytes(), int(data.attrs["k"]))
+    if key not in _cache:
+        if len(_cache) > 32:
+            _cache.clear()
+        _cache[key] = RodSystem(data.rod, data.gamma, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b)
+    return _cache[key]

@@ -14,6 +14,7 @@ Layout (names are read by other tools; keep them)::
     /branch/defect         (n,)   relative residual between collocation points (error indicator)
     /branch/kind           (n,)   bytes: start, regular, fold, branch_point, forced, bound, event:...
     /branch/coefficients   (n, m) unknown vector x (B-spline coefficients, see /mesh)
+    /branch/breakpoints    (n, N+1) the partition each point was computed on (moves with --adapt)
     /branch/dphi_ds        (n,)   parameter component of the unit tangent (0 at a fold)
     /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index
     /branch_points/index, phi_L, stretch
@@ -63,6 +64,8 @@ class BranchWriter:
         g.create_dataset("kind", (0,), maxshape=(None,), dtype="S32", chunks=(256,), compression="gzip")
         g.create_dataset("coefficients", (0, size), maxshape=(None, size), dtype="f8",
                          chunks=(16, size), compression="gzip", shuffle=True)
+        nb = len(breakpoints)
+        g.create_dataset("breakpoints", (0, nb), maxshape=(None, nb), dtype="f8", chunks=(64, nb), compression="gzip")
         fo = self.f.create_group("folds")
         for name in FOLD_FIELDS:
             dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
@@ -84,13 +87,14 @@ class BranchWriter:
         ds.resize(n + 1, axis=0)
         ds[n] = value
 
-    def add(self, data: dict, kind: str, x: np.ndarray):
+    def add(self, data: dict, kind: str, x: np.ndarray, breakpoints: np.ndarray | None = None):
         g = self.f["branch"]
         for name in self.columns:
             self._append(g[name], float(data[name]))
         self._append(g["helical_waves"], int(data["helical_waves"]))
         self._append(g["kind"], kind.encode()[:32])
         self._append(g["coefficients"], x)
+        self._append(g["breakpoints"], self.f["mesh/breakpoints"][()] if breakpoints is None else breakpoints)
         self.n += 1
         self.f.flush()
 
@@ -171,6 +175,7 @@ class BranchData:
         i = self.resolve(label)
         out = {name: self.branch[name][i] for name in self.branch if self.branch[name].ndim == 1}
         out["x"] = self.branch["coefficients"][i]
+        out["breakpoints"] = self.branch["breakpoints"][i] if "breakpoints" in self.branch else self.breakpoints
         out["index"] = i
         out["direction"] = self.direction(i)
         return out
@@ -179,11 +184,17 @@ class BranchData:
         """Direction of travel at point ``i``: the secant from the previous point
         (from point 0: towards the next one, or increasing phi_L)."""
         X, P = self.branch["coefficients"], self.branch["phi_L"]
-        if i > 0:
+        B = self.branch.get("breakpoints")
+
+        def same_mesh(a, b):  # coefficients on different meshes cannot be subtracted
+            return B is None or np.array_equal(B[a], B[b])
+
+        if i > 0 and same_mesh(i, i - 1):
             return X[i] - X[i - 1], float(P[i] - P[i - 1])
-        if len(P) > 1:
-            return X[1] - X[0], float(P[1] - P[0])
-        return np.zeros_like(X[0]), 1.0
+        if i + 1 < len(P) and same_mesh(i, i + 1):
+            return X[i + 1] - X[i], float(P[i + 1] - P[i])
+        dphi = float(P[i] - P[i - 1]) if i > 0 else 1.0
+        return np.zeros_like(X[0]), 1.0 if dphi >= 0 else -1.0
 
 
 def load_branch(path: str) -> BranchData:

@@ -200,11 +200,13 @@ class _Progress:
 @click.option("--forced", type=float, multiple=True, help="a Phi value that gets a point of its own (repeatable)")
 @click.option("--start", default=None, help="restart from FILE.h5:POINT (index from 0, F<j> or BP<j> from 1)")
 @click.option("--switch", is_flag=True, help="with --start at a branch point: follow the other branch")
+@click.option("--adapt", is_flag=True,
+              help="move the N breakpoints to equidistribute the defect when it reaches max-defect/10")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_defect, forced,
-          start, switch, out, quiet, N, k, w, EI, GJ, EA, L):
+          start, switch, adapt, out, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch in Phi through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
@@ -219,6 +221,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     if phi_min >= phi_max:
         raise UserError("--phi-min must be below --phi-max")
     start_data = None
+    breakpoints = None
     if start is not None:
         path, label = _split_label(start)
         data = _load(path)
@@ -234,6 +237,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         gamma = data.gamma
         N, k = int(data.attrs["N"]), int(data.attrs["k"])
         start_data = (pt["x"], float(pt["phi_L"]), pt["direction"])
+        breakpoints = pt["breakpoints"]
         if switch and pt["kind"] != "branch_point":
             raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
         if os.path.abspath(path) == os.path.abspath(out):
@@ -268,7 +272,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
                   min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
                   ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, switch=switch, out=out,
-                  callback=callback)
+                  callback=callback, adapt=adapt, breakpoints=breakpoints)
     except KeyboardInterrupt:
         interrupted = True
     except ValueError as exc:
@@ -358,7 +362,6 @@ def shape(file, points, output):
     from .rod import EulerianRod
     data = _load(file)
     model = EulerianRod(data.rod)
-    disc = model.discretise(breakpoints=data.breakpoints, k=int(data.attrs["k"]))
     curves = []
     S = np.linspace(0, data.rod.L, 400)
     for label in points:
@@ -366,6 +369,7 @@ def shape(file, points, output):
             pt = data.point(label)
         except BranchFileError as exc:
             raise UserError(str(exc)) from None
+        disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
         if pt["x"].size != disc.size:
             raise UserError(f"{file}: stored coefficients do not fit the stored mesh")
         r = model.centreline(disc, pt["x"], S)

@@ -122,7 +122,7 @@ def uniform_mesh(a: float, b: float, N: int) -> np.ndarray:
     return np.linspace(a, b, int(N) + 1)
 
 
-def equidistribute(breakpoints: np.ndarray, indicator: np.ndarray, order: int, floor: float = 0.05,
+def equidistribute(breakpoints: np.ndarray, indicator: np.ndarray, order: int, floor: float = 0.02,
                    ratio: float = 2.0, relax: float = 0.5) -> np.ndarray:
     """A mesh with the same number of subintervals on which ``indicator`` would be equal.
 

@@ -450,10 +450,14 @@ class Tracker:
                                      f"event:{ev.name}")
                     if f is not None:
                         found.append((f.ds, f, ev.stop, f"{ev.name}"))
+                    elif ev.stop:  # crossed but not located: stop before the crossing, say so
+                        found.append((ds, None, True, f"{ev.name} (crossed between p = {base.p:.10g} and "
+                                                      f"{new.p:.10g}; not located)"))
             found.sort(key=lambda item: item[0])
             for _, pt, stop, reason in found:
-                self._accept(pt)
-                yield pt
+                if pt is not None:
+                    self._accept(pt)
+                    yield pt
                 if stop:
                     self.stop_reason = reason
                     return
