@@ -450,11 +450,13 @@ class _GreedyFloats(click.Option):
 @click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True)
 @click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True)
 @click.option("--max-defect", type=float, default=1e-2, show_default=True, callback=_positive("--max-defect"))
+@click.option("--adapt", is_flag=True, help="move the breakpoints with the shape (see trace --adapt)")
 @click.option("--jobs", type=click.IntRange(1, 1024), default=None, help="parallel processes [default: all cores]")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="directory for the files")
 @click.option("--quiet", is_flag=True)
 @rod_options
-def sweep(gammas, phi_max, phi_min, max_steps, min_alignment, max_defect, jobs, out_dir, quiet, N, k, w, EI, GJ, EA, L):
+def sweep(gammas, phi_max, phi_min, max_steps, min_alignment, max_defect, adapt, jobs, out_dir, quiet,
+          N, k, w, EI, GJ, EA, L):
     """A family of branches, one per Gamma, traced in parallel, and their combined diagram."""
     from .family import sweep as run_sweep
     rod = _rod(w, EI, GJ, EA, L)
@@ -471,7 +473,7 @@ def sweep(gammas, phi_max, phi_min, max_steps, min_alignment, max_defect, jobs, 
     t0 = time.perf_counter()
     res = run_sweep(list(gammas), out_dir, rod=rod, N=N, k=k, jobs=jobs, progress=not quiet,
                     phi_max=phi_max, phi_min=phi_min, max_steps=max_steps, min_alignment=min_alignment,
-                    max_defect=max_defect)
+                    max_defect=max_defect, adapt=adapt)
     click.echo(f"{'gamma':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
     for r in res["branches"]:
         ff = f"{r['first_fold']:18.10f}" if r["first_fold"] is not None else f"{'-':>18}"
