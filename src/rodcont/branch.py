@@ -239,7 +239,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     events = [Event(f"validity guard: min d3.K3 reached min_alignment = {min_alignment:g}",
                     lambda q: q.data["min_alignment"] - min_alignment, stop=True, tol=1e-6),
               Event(f"accuracy guard: discretisation defect reached max_defect = {max_defect:g} "
-                    f"(the mesh no longer resolves the shape; raise N)",
+                    f"(the mesh no longer resolves the shape: raise N, or --adapt)",
                     lambda q: 1.0 - q.data["defect"] / max_defect, stop=True, tol=1e-6)]
     if stretch_max is not None:
         events.append(Event(f"stretch_max = {stretch_max:g} reached", lambda q: stretch_max - q.data["stretch"],
