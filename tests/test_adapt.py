@@ -11,8 +11,7 @@ import rodcont
 from rodcont.branch import point_system, trace
 from rodcont.collocation import BVProblem, Collocation, equidistribute
 
-import lagrangian_reference as lag
-from test_rod import _end_state
+from test_rod import clamp_miss
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -66,12 +65,7 @@ def test_adaptive_trace_goes_further_and_stays_a_rod_solution(tmp_path):
         sysm = point_system(d, i)
         x, ph = d.branch["coefficients"][i], d.branch["phi_L"][i]
         assert np.max(np.abs(sysm.residual(x, ph))) < 1e-7
-        eq = rodcont.Equilibrium(sysm.outputs(x, ph), x, sysm, None)
-        r0, D0, F0, M0 = _end_state(eq)
-        res = lag.kirchhoff_integrate(r0, D0, F0, M0, eq.outputs["l0"])
-        c, s = np.cos(ph), np.sin(ph)
-        assert np.max(np.abs(res["r"] - [1, 0, 0])) < 1e-6, i
-        assert np.max(np.abs(res["D"] - np.array([[0, 0, 1], [c, -s, 0], [s, c, 0]]))) < 1e-6, i
+        assert max(clamp_miss(rodcont.Equilibrium(sysm.outputs(x, ph), x, sysm, None))) < 1e-6, i
     # a restart from an adapted point uses that point's mesh
     env = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src"), OPENBLAS_NUM_THREADS="1")
     i = beyond[0]

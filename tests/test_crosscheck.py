@@ -83,15 +83,10 @@ def test_torque_constant_and_equilibrium_along_stored_branches(path):
 def test_stored_points_satisfy_kirchhoff_equations():
     """A few resolved points of the stored Gamma = 1 branch, rebuilt in the Lagrangian coordinate:
     integrating paper eqs 3-6 from S = 0 lands on the clamp at S = L."""
-    from test_rod import _end_state
+    from test_rod import clamp_miss
     d = rodcont.load_branch(os.path.join(ROOT, "branches", "gamma_1.h5"))
     idx = [i for i in range(0, len(d), 5) if d.branch["defect"][i] < 1e-4]
     for i in idx:
         sysm = point_system(d, i)
         x, ph = d.branch["coefficients"][i], d.branch["phi_L"][i]
-        eq = rodcont.Equilibrium(sysm.outputs(x, ph), x, sysm, None)
-        r0, D0, F0, M0 = _end_state(eq)
-        out = lag.kirchhoff_integrate(r0, D0, F0, M0, eq.outputs["l0"])
-        c, s = np.cos(ph), np.sin(ph)
-        assert np.max(np.abs(out["r"] - [1, 0, 0])) < 1e-6, i
-        assert np.max(np.abs(out["D"] - np.array([[0, 0, 1], [c, -s, 0], [s, c, 0]]))) < 1e-6, i
+        assert max(clamp_miss(rodcont.Equilibrium(sysm.outputs(x, ph), x, sysm, None))) < 1e-6, i

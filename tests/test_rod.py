@@ -178,6 +178,19 @@ def _end_state(eq):
     return r[:, 0], D, F, M
 
 
+def clamp_miss(eq) -> tuple[float, float]:
+    """Integrate the Kirchhoff equations (independent code) from S = 0 with the solution's end
+    force and moment over its unstressed length; how far the end lands from the far clamp
+    (position, directors turned by phi_L about e1)."""
+    ph = eq.outputs["phi_L"]
+    r0, D0, F0, M0 = _end_state(eq)
+    rod = eq.system.model.rod
+    out = lag.kirchhoff_integrate(r0, D0, F0, M0, eq.outputs["l0"], w=rod.w, EI=rod.EI, GJ=rod.GJ, EA=rod.EA)
+    c, s = math.cos(ph), math.sin(ph)
+    clamp = np.array([[0, 0, 1], [c, -s, 0], [s, c, 0]])
+    return float(np.max(np.abs(out["r"] - [rod.L, 0, 0]))), float(np.max(np.abs(out["D"] - clamp)))
+
+
 def test_twisted_solution_satisfies_kirchhoff_equations():
     """Gamma = 1, Phi = 10: integrating paper eqs 3-6 in s from S = 0 with the computed end force and
     moment lands on the computed centreline and clamp at S = L (1e-6)."""
