@@ -206,3 +206,17 @@ def test_python_cli_entry_matches_console_script():
                        capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0
     assert "stretch 0.000924497" in r.stdout
+
+
+def test_restart_from_a_fold_goes_on_past_it(g1_file, tmp_path, capsys):
+    """--start FILE:F1: the start is regular at the fold (bordered Newton), the fold is not reported
+    twice, and the trace goes on along the branch, beyond the fold."""
+    out = tmp_path / "f1.h5"
+    code, stdout, err = run(["trace", "--start", f"{g1_file}:F1", "--max-steps", "5", "--out", str(out),
+                             "--quiet"], capsys)
+    assert code == 0, err
+    d = rodcont.load_branch(str(out))
+    ref = rodcont.load_branch(g1_file)
+    assert d.branch["phi_L"][0] == pytest.approx(ref.folds["phi_L"][0], abs=1e-10)
+    assert len(d.folds.get("index", [])) == 0
+    assert np.all(np.diff(d.branch["stretch"]) > 0) and d.branch["phi_L"][-1] < d.branch["phi_L"][0]
