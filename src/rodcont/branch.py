@@ -278,8 +278,13 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
                 seg_events.append(Event(REMESH, lambda q: 1.0 - q.data["defect"] / remesh_at, stop=True, tol=1e-3))
             tracker = Tracker(sysm, x0, p0, settings, monitor=sysm.outputs, events=seg_events, tangent0=t0,
                               exact_start=exact)
-            first = tracker.start()
-            if arc0 > 0 and remesh_at is not None and first.data["defect"] > 0.5 * last.data["defect"]:
+            try:
+                first = tracker.start()
+            except StopContinuation:
+                if arc0 == 0.0:
+                    raise
+                first = None  # the moved mesh did not converge: fall back below
+            if arc0 > 0 and remesh_at is not None and (first is None or first.data["defect"] > 0.5 * last.data["defect"]):
                 # moving the mesh no longer pays: go on where we were, to the accuracy guard
                 sysm, remesh_at = previous, None
                 tracker = Tracker(sysm, last.x, last.p, settings, monitor=sysm.outputs, events=events,
