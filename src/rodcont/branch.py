@@ -268,6 +268,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     remesh_at = max_defect / 10 if adapt else None
     t_start = time.perf_counter()
     arc0 = 0.0
+    segment = 0  # mesh segments: the first records its start point, later ones continue a stored point
     steps = iterations = 0
     tracker = None
     exact = switch
@@ -281,16 +282,17 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
             try:
                 first = tracker.start()
             except StopContinuation:
-                if arc0 == 0.0:
+                if segment == 0:
                     raise
                 first = None  # the moved mesh did not converge: fall back below
-            if arc0 > 0 and remesh_at is not None and (first is None or first.data["defect"] > 0.5 * last.data["defect"]):
+            moved_in_vain = segment > 0 and (first is None or first.data["defect"] > 0.5 * last.data["defect"])
+            if moved_in_vain and remesh_at is not None:
                 # moving the mesh no longer pays: go on where we were, to the accuracy guard
                 sysm, remesh_at = previous, None
                 tracker = Tracker(sysm, last.x, last.p, settings, monitor=sysm.outputs, events=events,
                                   tangent0=(last.tx, last.tp))
                 first = tracker.start()
-            if arc0 == 0.0:
+            if segment == 0:
                 first.arclength = 0.0
                 recorder.add(first, sysm.disc.breakpoints)
                 if callback is not None:
@@ -314,7 +316,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
             sysm = sysm.with_mesh(equidistribute(sysm.disc.breakpoints, d, order=sysm.disc.k + 1))
             x0, p0 = sysm.disc.transfer(last.x, previous.disc), last.p
             t0 = (sysm.disc.transfer(last.tx, previous.disc), last.tp)
-            exact, arc0 = False, last.arclength
+            exact, arc0, segment = False, last.arclength, segment + 1
     except StopContinuation as exc:
         reason = str(exc)
     except KeyboardInterrupt:

@@ -353,7 +353,7 @@ class _Outputs:
     def __call__(self, x, p):
         model, disc = self.model, self.disc
         z = disc.jets(x)
-        m, alpha, n, _ = model._axial_quantities(disc.S, z, p)
+        _, alpha, n, _ = model._axial_quantities(disc.S, z, p)
         L = model.rod.L
         l = disc.integrate(n)
         l0 = disc.integrate(n / alpha)
