@@ -270,7 +270,7 @@ def trace(gamma: float, rod: RodParameters | None = None, N: int = 15, k: int = 
     arc0 = 0.0
     segment = 0  # mesh segments: the first records its start point, later ones continue a stored point
     steps = iterations = 0
-    tracker = None
+    tracker = last = previous = None  # last point, and the system it was on, across segments
     exact = switch
     try:
         while True:
