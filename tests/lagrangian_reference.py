@@ -100,11 +100,42 @@ Verified numbers (paper values ``L=1, w=10, EI=1, GJ=0.75, EA=255``)
   Jacobian) is found at ``torque L/EI = 8.98682`` (``T = 0``) and 10.42886
   (``T L^2/EI = 10``, EA = 1e9); along the Gamma = 1 branch past the fold,
   ``min d3 . e1`` reaches 0 at ``Phi = 12.220``, stretch 0.859.
+
+Secondary branches (added later, same independence from ``src/``)
+------------------------------------------------------------------
+* :func:`critical_twists`: the straight weightless rod under tension ``T``
+  (exact for every ``Phi``, :func:`straight_weightless_state`) loses
+  uniqueness where ``2 (cosh b - cos a) = tau sinh(b)/b``,
+  ``a = GJ Phi/(2 EI)``, ``tau = T L^2/(alpha EI)``, ``b^2 = tau - a^2``
+  (derivation in :func:`critical_condition`; Greenhill ``tan a = a`` for
+  ``T = 0``); each root is a double zero of the shooting Jacobian.
+  Gamma = 1: ``Phi_n = 13.83443036, 21.69758836, 29.85840987, 38.11622360,
+  46.41777461``.
+* :func:`secondary_fold`: from the straight weightless state at a ``Phi``
+  between ``Phi_n`` and ``Phi_{n+1}``, continuation in the weight ``w``
+  (0 -> 10) at fixed ``T`` and ``Phi`` (:func:`heavy_seed`, shooting with
+  ``w`` as an extra unknown, :func:`_shoot_ext`), then in ``Phi`` upwards to
+  the first fold, located by Brent on ``dPhi/dsigma`` with
+  ``sigma = c . x`` (``c`` the tangent without its ``Phi`` component); the
+  branch is abandoned where ``min d3 . e1`` reaches 0 (the exit point is
+  then located and returned).  :func:`primary_fold` applies the same
+  tracer to the branch from ``Phi = 0`` (agrees with
+  :func:`twisted_branch_fold` to < 4e-13).
+* Gamma = 1 secondary folds (phi_L, stretch, torque, l0, min d3.e1):
+  n = 1: 21.0227971207, 0.0605983945, 14.959167916, 1.0209468126, 0.887;
+  n = 2: 29.2419861763, 0.0363425617, 21.563917829, 0.9971766278, 0.922;
+  n = 3: 37.5449542056, 0.0253206159, 28.151763486, 0.9864131611, 0.941.
+  Changing ``rtol`` 1e-12 -> 1e-10 moves them by < 5e-10; seeds at 1/4
+  instead of 1/2 of the interval give the same folds to < 1e-13; the
+  collocation re-solution (:func:`twisted_bvp`) gives the same ``Phi`` at
+  the fold stretch to < 2e-12.  All numbers, other Gamma, and the
+  accuracies: ``tests/data/lagrangian_folds.json``
+  (``tests/data/make_lagrangian_folds.py``).
 """
 
 import numpy as np
 from scipy.integrate import solve_bvp, solve_ivp
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 __all__ = [
     "kirchhoff_rhs",
@@ -116,6 +147,13 @@ __all__ = [
     "quat_to_directors",
     "directors_to_quat",
     "clamp_quaternion",
+    "straight_weightless_state",
+    "critical_condition",
+    "critical_twists",
+    "slope_turns",
+    "primary_fold",
+    "heavy_seed",
+    "secondary_fold",
 ]
 
 # Complex step used for exact derivatives (any tiny value works).
@@ -671,3 +709,494 @@ def twisted_bvp(gamma, z, stretch=None, w=10., EI=1., GJ=0.75, EA=255., L=1.,
     return dict(phi_L=float(res.p[1] if free_phi else z[6]),
                 stretch=float(res.y[13, -1] / L - 1), l0=float(res.p[0]),
                 torque=float(res.y[10, 0]), bvp=res)
+
+
+# ----------------------------------------------------------------------------
+# Straight weightless rod, its critical twists, and the secondary branches
+# ----------------------------------------------------------------------------
+def straight_weightless_state(gamma, phi_L, w=10., GJ=0.75, EA=255., L=1.):
+    """Exact straight twisted state of the *weightless* rod (shooting unknowns).
+
+    With ``w = 0`` and ``F . e1 = T = gamma * w * L`` (``w`` is only used to
+    build ``T``: it is the weight the branch will eventually carry), the
+    straight rod ``r = alpha s e1``, ``d3 = e1``, ``F = T e1``,
+    ``M = M_t e1`` solves the Kirchhoff equations for every ``phi_L``:
+    ``alpha = 1 + T/EA``, ``l0 = L/alpha``, ``u3 = phi_L/l0`` (uniform twist,
+    the directors turn by ``phi_L`` about ``e1``), ``M_t = GJ phi_L/l0``.
+
+    Returns the 8 unknowns ``x = (F2, F3, M1, M2, M3, l0, Phi, w)`` of
+    :func:`_shoot_ext` (global components at ``s = 0``; ``F1 = T``) with the
+    weight set to 0.
+    """
+    T = gamma * w * L
+    alpha = 1 + T / EA
+    l0 = L / alpha
+    return np.array([0.0, 0.0, GJ * phi_L / l0, 0.0, 0.0, l0, float(phi_L), 0.0])
+
+
+def critical_condition(a, tau):
+    """Loss of uniqueness of the straight weightless twisted rod (clamped).
+
+    Derivation (Lagrangian, linearised about the straight state of
+    :func:`straight_weightless_state`).  Write the transverse part of ``d3`` as
+    the complex slope ``zeta = d3.e2 + i d3.e3`` (small), and the transverse
+    displacement ``rho = r.e2 + i r.e3``.  Since ``e1 x (a e2 + b e3)``
+    is multiplication by ``i``, to first order ``rho' = alpha zeta``,
+    the transverse moment is ``EI d3 x d3' + M_t d3 -> i EI zeta' + M_t zeta``
+    (isotropic rod, ``M . d3 = M_t`` constant), the force is ``T e1 + V``
+    with ``V`` a constant transverse force (``w = 0``), and the transverse
+    part of ``M' + alpha d3 x F = 0`` reads
+
+        EI zeta'' - i M_t zeta' - alpha T zeta = -alpha V,     s in [0, l0],
+
+    with ``zeta(0) = zeta(l0) = 0`` (clamps ``d3 = e1``) and
+    ``int_0^l0 zeta ds = 0`` (``rho(l0) = 0``); ``alpha = 1 + T/EA`` and the
+    twist rate ``M_t/GJ = Phi/l0`` are unperturbed at first order.  With
+    ``lambda_{1,2} = i k/2 +- beta`` (``k = M_t/EI``,
+    ``beta^2 = alpha T/EI - k^2/4``) the solution is
+    ``zeta = V/T + A e^{lambda_1 s} + B e^{lambda_2 s}``; the 3x3 determinant
+    of the three conditions is, up to the factor
+    ``4 beta EI e^{i k l0/2} / (alpha T)``,
+
+        h(a, tau) = 2 (cosh b - cos a) - tau sinh(b)/b = 0,
+
+    ``a = M_t l0/(2 EI) = GJ Phi/(2 EI)``, ``tau = alpha T l0^2/EI = T L^2/(alpha EI)``,
+    ``b = beta l0 = sqrt(tau - a^2)`` (``h`` is even in ``b``, hence real
+    for ``a^2 > tau`` too: ``cosh b -> cos g``, ``sinh(b)/b -> sin(g)/g``,
+    ``g = sqrt(a^2 - tau)``).  The same equation follows in the deformed
+    coordinate ``x = alpha s`` from ``alpha EI rho'''' - i M_t rho''' - T rho'' = 0``
+    on ``[0, L]``: extensibility only rescales the bending stiffness.
+    For ``tau -> 0`` (``T = 0``) ``h = O(tau^2)`` with leading coefficient
+    proportional to ``sin a - a cos a``: the Greenhill condition
+    ``tan a = a`` (``M_t L/EI = 2 a = 8.9868``), used for ``tau == 0``.
+    Each root is a *double* eigenvalue of the real problem (``zeta`` and
+    ``i zeta``: the rotational symmetry about ``e1``).
+
+    ``a`` may be an array; ``tau`` a scalar >= 0.  Returns ``h`` (or
+    ``sin a - a cos a`` if ``tau == 0``).
+    """
+    a = np.asarray(a, dtype=float)
+    if tau == 0:
+        return np.sin(a) - a * np.cos(a)
+    b2 = tau - a * a
+    b = np.sqrt(b2.astype(complex))
+    small = np.abs(b) < 1e-8
+    bs = np.where(small, 1.0, b)
+    sinhc = np.where(small, 1.0 + b2 / 6, np.sinh(bs) / bs)
+    return (2 * (np.cosh(b) - np.cos(a)) - tau * sinhc).real
+
+
+def critical_twists(gamma, count=5, w=10., EI=1., GJ=0.75, EA=255., L=1.):
+    """First ``count`` critical twists ``Phi_n`` of the straight weightless rod.
+
+    Roots ``a_n`` of :func:`critical_condition` (sign changes on a fine grid
+    of ``a``, then Brent to 1e-15) with ``tau = T L^2/(alpha EI)``,
+    ``T = gamma * w * L``, ``alpha = 1 + T/EA``; ``Phi_n = 2 a_n EI/GJ``,
+    torque ``M_t = 2 a_n EI/l0``.  For ``T L^2/EI = 10``, ``EA -> inf`` the
+    first root gives ``M_t L/EI = 10.42886`` and for ``T = 0`` 8.98682
+    (Greenhill).
+
+    Returns dict with ``phi_L`` (array), ``torque`` (array), ``tau``.
+    """
+    T = gamma * w * L
+    alpha = 1 + T / EA
+    l0 = L / alpha
+    tau = T * L ** 2 / (alpha * EI)
+    roots = []
+    a_hi = 8.0
+    while len(roots) < count:
+        grid = np.linspace(1e-3, a_hi, int(400 * a_hi))
+        v = critical_condition(grid, tau)
+        idx = np.nonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0)[0]
+        roots = [brentq(lambda a: float(critical_condition(a, tau)), grid[i], grid[i + 1],
+                        xtol=1e-15, rtol=4 * np.finfo(float).eps) for i in idx]
+        a_hi *= 2
+    a = np.array(roots[:count])
+    return dict(phi_L=2 * a * EI / GJ, torque=2 * a * EI / l0, tau=tau)
+
+
+def _shoot_ext(x, T, par, rtol):
+    """Shooting map with the weight as an extra unknown, and its exact Jacobian.
+
+    ``x = (F2, F3, M1, M2, M3, l0, Phi, w)`` (global components of ``F`` and
+    ``M`` at ``s = 0``, ``F1 = T``), ``par = (EI, GJ, EA, L)``.  Same
+    equations as :func:`_shoot`; the ``w`` column of the Jacobian is a sixth
+    complex-step column integrated with the five initial-value columns (its
+    body force ``-(w + i h) g``).  Returns ``G`` (7,): six clamp residuals and
+    the stretch; ``J`` (7, 8) = dG/dx; the scalar part of
+    ``conj(q_Phi) q(l0)`` (> 0 on the continuous sheet).
+    """
+    EI, GJ, EA, L = par
+    y0 = _initial_state(x[:7], T, ncol=6)
+    for j in range(5):
+        y0[8 + j, j] += 1j * _H
+    wcol = np.full(6, x[7], dtype=complex)
+    wcol[5] += 1j * _H
+    f = lambda s, y: kirchhoff_rhs(y.reshape(14, 6), wcol, EI, GJ, EA).ravel()
+    sol = solve_ivp(f, (0.0, x[5]), y0.ravel(), method="DOP853", rtol=rtol, atol=0.1 * rtol)
+    if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
+        raise RuntimeError("shooting integration failed")
+    ye = sol.y[:, -1].reshape(14, 6)
+    base = ye[:, 0].real
+    cols = np.empty((14, 8), dtype=complex)
+    cols[:, :5] = ye[:, :5]
+    cols[:, 5] = base + 1j * _H * kirchhoff_rhs(base, x[7], EI, GJ, EA)
+    cols[:, 6] = base
+    cols[:, 7] = ye[:, 5]
+    phi = np.full(8, x[6], dtype=complex)
+    phi[6] += 1j * _H
+    res, sc = _end_residual(cols, phi, L)
+    return res[:, 0].real.copy(), res.imag / _H, sc[0].real
+
+
+def _newton_ext(x, T, par, rtol, active, row_fn, tol=1e-11, maxit=15):
+    """Newton on the six clamp equations plus one scalar equation.
+
+    ``active``: indices (7) of ``x`` that are unknowns (the eighth is held).
+    ``row_fn(xa, G, Ja) -> (row, e)`` gives the extra equation ``e = 0`` and
+    its gradient with respect to the active unknowns.  Returns ``x``, ``G``,
+    ``Ja`` (7 x 7: clamp rows and the stretch row, active columns), the
+    orientation scalar and the iteration count.
+    """
+    x = np.array(x, dtype=float)
+    for it in range(1, maxit + 1):
+        G, J, sc = _shoot_ext(x, T, par, rtol)
+        Ja = J[:, active]
+        row, e = row_fn(x[active], G, Ja)
+        dx = np.linalg.solve(np.vstack([Ja[:6], row]), -np.append(G[:6], e))
+        if not np.all(np.isfinite(dx)):
+            break
+        x[active] += dx
+        if x[5] <= 0:
+            break
+        if np.max(np.abs(dx)) < tol:
+            G, J, sc = _shoot_ext(x, T, par, rtol)
+            if sc <= 0:
+                raise RuntimeError("end clamp quaternion jumped to the other sheet")
+            return x, G, J[:, active], sc, it
+    raise RuntimeError("Newton did not converge")
+
+
+def _continue_ext(x0, T, par, rtol, active, k_dir, ds0=0.2, ds_max=1.0, max_angle=0.3,
+                  max_steps=4000):
+    """Pseudo-arclength continuation in the 7 active unknowns of ``x``.
+
+    Starts from the converged ``x0``, initial tangent oriented so that its
+    component ``k_dir`` (index into ``active``) is positive.  Yields
+    ``(x, G, Ja, tau)`` at the start and at every accepted point.  Predictor
+    ``x + ds tau``; corrector: Newton on ``[G_clamp(x) = 0,
+    tau . (x - x_prev) = ds]``; step halved on Newton failure or when the
+    tangent turns by more than ``max_angle``; grown by 1.5 after easy steps.
+    """
+    act = np.asarray(active)
+
+    def tangent(Ja, t_prev):
+        t = np.linalg.solve(np.vstack([Ja[:6], t_prev]), np.eye(7)[6])
+        return t / np.linalg.norm(t)
+
+    x = np.array(x0, dtype=float)
+    G, J, _ = _shoot_ext(x, T, par, rtol)
+    Ja = J[:, act]
+    tau = tangent(Ja, np.eye(7)[k_dir])
+    yield x, G, Ja, tau
+    ds = ds0
+    for _ in range(max_steps):
+        if ds < 1e-9:
+            raise RuntimeError("continuation step collapsed at x = %s" % x)
+        xp = x.copy()
+        xp[act] += ds * tau
+        xa_prev = x[act].copy()
+        try:
+            xn, Gn, Jn, _, it = _newton_ext(
+                xp, T, par, rtol, act,
+                lambda xa, G, Ja: (tau, tau @ (xa - xa_prev) - ds))
+        except RuntimeError:
+            ds /= 2
+            continue
+        taun = tangent(Jn, tau)
+        if np.arccos(np.clip(tau @ taun, -1, 1)) > max_angle:
+            ds /= 2
+            continue
+        x, G, Ja, tau = xn, Gn, Jn, taun
+        yield x, G, Ja, tau
+        if it <= 3:
+            ds = min(1.5 * ds, ds_max)
+    raise RuntimeError("continuation: too many steps")
+
+
+def _profile(x, T, par, rtol, n=4001):
+    """Dense solution for unknowns ``x``: returns (s grid, directors (3,3,n), sol)."""
+    EI, GJ, EA, L = par
+    sol = solve_ivp(lambda s, y: kirchhoff_rhs(y, x[7], EI, GJ, EA), (0.0, x[5]),
+                    _initial_state(x[:7], T), method="DOP853", rtol=rtol, atol=0.1 * rtol,
+                    dense_output=True)
+    s = np.linspace(0.0, x[5], n)
+    return s, quat_to_directors(sol.sol(s)[3:7]), sol
+
+
+def _min_d3_e1_ext(x, T, par, rtol):
+    """Minimum over ``s`` of ``d3 . e1``: sampled on 4001 points, then refined
+    by a bounded Brent minimisation between the neighbours of the sampled
+    minimum (``xatol`` 1e-11 in ``s``, so the value is exact to rounding)."""
+    s, D, sol = _profile(x, T, par, rtol)
+    c = D[0, 2]
+    k = int(np.argmin(c))
+    if 0 < k < s.size - 1:
+        f = lambda t: float(quat_to_directors(sol.sol(t)[3:7])[0, 2])
+        r = minimize_scalar(f, bounds=(s[k - 1], s[k + 1]), method="bounded",
+                            options=dict(xatol=1e-11))
+        return float(min(r.fun, c[k]))
+    return float(c[k])
+
+
+def slope_turns(x, T, par, rtol=1e-12):
+    """Turns made by the transverse slope ``zeta = d3.e2 + i d3.e3`` along the rod.
+
+    ``(arg zeta(l0-) - arg zeta(0+)) / (2 pi)`` with the argument followed
+    continuously.  ``zeta`` vanishes at both clamps, where its direction has
+    a limit: ``zeta ~ zeta'(0) s`` and ``zeta ~ -zeta'(l0) (l0 - s)``, with
+    ``d3' = u x d3`` (``u = D (M.d1/EI, M.d2/EI, M.d3/GJ)``) evaluated from the
+    end states, so the end directions are exact.  In between ``arg zeta`` is
+    sampled on a grid clustered at the ends (``s = l0 (1 - cos(pi t))/2``,
+    ``t`` in [1e-3, 1 - 1e-3]) and refined until no step of the argument
+    exceeds 0.3 rad.  A float; ill defined only if ``zeta`` (or
+    ``zeta'`` at an end) vanishes.
+    """
+    EI, GJ, EA, L = par
+    sol = solve_ivp(lambda s, y: kirchhoff_rhs(y, x[7], EI, GJ, EA), (0.0, x[5]),
+                    _initial_state(x[:7], T), method="DOP853", rtol=rtol, atol=0.1 * rtol,
+                    dense_output=True)
+
+    def dzeta(y):
+        D = quat_to_directors(y[3:7])
+        u = D @ ((D.T @ y[10:13]) / np.array([EI, EI, GJ]))
+        d3p = np.cross(u, D[:, 2])
+        return d3p[1] + 1j * d3p[2]
+
+    a0 = np.angle(dzeta(sol.y[:, 0]))
+    a1 = np.angle(-dzeta(sol.y[:, -1]))
+    n = 2001
+    while True:
+        t = np.linspace(1e-3, 1 - 1e-3, n)
+        s = x[5] * 0.5 * (1 - np.cos(np.pi * t))
+        D = quat_to_directors(sol.sol(s)[3:7])
+        ang = np.unwrap(np.concatenate([[a0], np.angle(D[1, 2] + 1j * D[2, 2]), [a1]]))
+        if np.max(np.abs(np.diff(ang))) < 0.3 or n > 300000:
+            return float((ang[-1] - ang[0]) / (2 * np.pi))
+        n = 2 * n - 1
+
+
+def _locate_fold_ext(pa, pb, T, par, rtol, active, k_phi, xtol=1e-13):
+    """Fold of ``Phi`` between accepted continuation points ``pa``, ``pb``.
+
+    ``p = (x, G, Ja, tau)`` with the ``Phi`` component of ``tau`` changing
+    sign.  The branch is parametrised near the fold by ``sigma = c . x_act``,
+    ``c`` the mean of the two tangents with its ``Phi`` component removed
+    (``sigma`` is monotone across the fold).  At given ``sigma`` the
+    extended system ``[G_clamp(x) = 0, c . x_act = sigma]`` is solved by
+    Newton; ``dPhi/dsigma = (A^-1 e_7)_Phi`` (implicit differentiation, ``A``
+    its Jacobian) and Brent finds its root to ``xtol`` in ``sigma``.
+    Returns ``(x, G, dPhi/dsigma)`` at the fold.
+    """
+    act = np.asarray(active)
+    c = pa[3] + pb[3]
+    c[k_phi] = 0.0
+    c /= np.linalg.norm(c)
+    sa, sb = c @ pa[0][act], c @ pb[0][act]
+    if not sb > sa:
+        raise RuntimeError("fold bracket: sigma is not increasing")
+    state = {}
+
+    def dphi(sig):
+        lam = (sig - sa) / (sb - sa)
+        xg = state.get("x", (1 - lam) * pa[0] + lam * pb[0])
+        xs, Gs, Js, _, _ = _newton_ext(xg, T, par, rtol, act,
+                                       lambda xa, G, Ja: (c, c @ xa - sig), tol=1e-12)
+        state.update(x=xs, G=Gs)
+        return np.linalg.solve(np.vstack([Js[:6], c]), np.eye(7)[6])[k_phi]
+
+    fa, fb = dphi(sa), dphi(sb)
+    if not (fa > 0 > fb):
+        raise RuntimeError("fold bracket without a sign change of dPhi/dsigma")
+    sig = brentq(dphi, sa, sb, xtol=xtol, rtol=4 * np.finfo(float).eps)
+    d = dphi(sig)
+    return state["x"], state["G"], d
+
+
+def _fold_fields(x, G, T, par, rtol):
+    """Reported figures of a converged state ``x`` (8 unknowns) with output ``G``."""
+    return dict(phi_L=float(x[6]), stretch=float(G[6]), torque=float(x[2]),
+                l0=float(x[5]), min_d3_e1=_min_d3_e1_ext(x, T, par, rtol),
+                slope_turns=slope_turns(x, T, par, rtol))
+
+
+def _locate_exit_ext(pa, pb, T, par, rtol, active):
+    """Point between accepted points ``pa`` (min d3.e1 > 0) and ``pb`` (<= 0)
+    where ``min_s d3 . e1 = 0``.
+
+    Points of the branch between them are parametrised by the arclength
+    ``t = tau_a . (x - x_a)`` along ``pa``'s tangent (the same corrector as the
+    continuation) and Brent finds the zero of ``min d3 . e1`` in ``t`` to
+    1e-12.  Returns ``(x, G)`` there.
+    """
+    act = np.asarray(active)
+    xa, tau = pa[0], pa[3]
+    tb = tau @ (pb[0][act] - xa[act])
+
+    def point(t):
+        lam = t / tb
+        xg = (1 - lam) * xa + lam * pb[0]
+        xs, Gs, _, _, _ = _newton_ext(xg, T, par, rtol, act,
+                                      lambda y, G, Ja: (tau, tau @ (y - xa[act]) - t))
+        return xs, Gs
+
+    t = brentq(lambda t: _min_d3_e1_ext(point(t)[0], T, par, rtol), 0.0, tb, xtol=1e-12)
+    return point(t)
+
+
+def _trace_to_fold(x_start, T, par, rtol, xtol, record=False, stop_at_exit=True):
+    """Follow the branch through ``x_start`` with increasing ``Phi`` to its first fold.
+
+    Pseudo-arclength continuation (:func:`_continue_ext`) in
+    ``(F2, F3, M1, M2, M3, l0, Phi)`` at the weight ``x_start[7]``; at every
+    accepted point ``min d3 . e1`` is computed.  Stops at the first sign
+    change (+ to -) of the ``Phi`` component of the tangent, then locates the
+    fold (:func:`_locate_fold_ext`); or, if ``min d3 . e1 <= 0`` first (the
+    rod leaves the Eulerian domain ``d3 . e1 > 0`` before any fold), locates
+    the exit point (:func:`_locate_exit_ext`) and returns its fields with
+    ``left_domain = True``.  With ``stop_at_exit=False`` the exit point is
+    stored in ``out['exit']`` and the branch is followed (outside the
+    Eulerian domain: the Lagrangian equations do not need it) to its fold.
+    Returns ``(out, steps)``; with ``record`` the accepted points
+    ``(phi_L, stretch, min d3.e1)`` are in ``out['branch']``.
+    """
+    active = [0, 1, 2, 3, 4, 5, 6]
+    prev = None
+    steps = 0
+    pts = []
+    exit_ = None
+    for x, G, Ja, tau in _continue_ext(x_start, T, par, rtol, active, 6, ds0=0.2,
+                                       ds_max=1.0):
+        steps += 1
+        m = _min_d3_e1_ext(x, T, par, rtol)
+        pts.append((float(x[6]), float(G[6]), m))
+        if m <= 0 and exit_ is None:
+            xe, Ge = _locate_exit_ext(prev, (x, G, Ja, tau), T, par, rtol, active)
+            exit_ = _fold_fields(xe, Ge, T, par, rtol)
+            exit_.update(residual=float(np.max(np.abs(Ge[:6]))), x=xe.tolist())
+            if stop_at_exit:
+                out = dict(exit_, left_domain=True)
+                break
+        if prev is not None and prev[3][6] > 0 and tau[6] < 0:
+            xf, Gf, d = _locate_fold_ext(prev, (x, G, Ja, tau), T, par, rtol, active, 6,
+                                         xtol=xtol)
+            out = _fold_fields(xf, Gf, T, par, rtol)
+            out.update(left_domain=exit_ is not None, dphi_dsigma=float(d),
+                       residual=float(np.max(np.abs(Gf[:6]))), x=xf.tolist())
+            if exit_ is not None:
+                out["exit"] = exit_
+            break
+        prev = (x, G, Ja, tau, m)
+    if record:
+        out["branch"] = np.array(pts)
+    return out, steps
+
+
+def primary_fold(gamma, w=10., EI=1., GJ=0.75, EA=255., L=1., rtol=1e-12, xtol=1e-13,
+                 record=False, stop_at_exit=True):
+    """First fold of the primary branch (from the planar sag ``Phi = 0``).
+
+    Same start as :func:`twisted_branch_fold` (the planar solution of
+    :func:`planar_sag` polished by shooting) but followed by
+    :func:`_trace_to_fold`: arclength steps in the raw unknowns, a check of
+    ``min d3 . e1 > 0`` at every point, and the fold located with the
+    parameter ``sigma = c . x`` (not the stretch) -- a second route to the
+    same fold.  Returns the dict of :func:`_trace_to_fold` (fields
+    ``phi_L, stretch, torque, l0, min_d3_e1, slope_turns, left_domain,
+    dphi_dsigma, residual, x``) plus ``branch_steps``.
+    """
+    par = (EI, GJ, EA, L)
+    T = gamma * w * L
+    z, _, _, _, _ = _start_point(gamma, (w, EI, GJ, EA, L), rtol)
+    x0 = np.append(z, w)
+    out, steps = _trace_to_fold(x0, T, par, rtol, xtol, record, stop_at_exit)
+    out.update(branch_steps=steps, gamma=gamma)
+    return out
+
+
+def heavy_seed(gamma, phi_seed, w=10., EI=1., GJ=0.75, EA=255., L=1., rtol=1e-12):
+    """Near-straight heavy solution reached from the straight weightless rod.
+
+    Start: :func:`straight_weightless_state` at ``Phi = phi_seed`` (exact,
+    residual 0 to rounding; isolated when ``phi_seed`` is not a critical
+    twist).  Then pseudo-arclength continuation in
+    ``(F2, F3, M1, M2, M3, l0, w)`` at fixed ``Phi = phi_seed`` and fixed
+    ``T = gamma * w * L`` (``w`` here is the *final* weight) from weight 0 up
+    to ``w``, the last point solved at weight ``w`` exactly.
+
+    Returns ``(x, G, steps)``: unknowns ``x`` (8, last = weight), shooting
+    output ``G`` and the number of continuation points.
+    """
+    par = (EI, GJ, EA, L)
+    T = gamma * w * L
+    active = [0, 1, 2, 3, 4, 5, 7]
+    x0 = straight_weightless_state(gamma, phi_seed, w=w, GJ=GJ, EA=EA, L=L)
+    prev = None
+    for k, (x, G, Ja, tau) in enumerate(_continue_ext(x0, T, par, rtol, active, 6,
+                                                      ds0=0.5, ds_max=2.0)):
+        if x[7] >= w:
+            lam = (w - prev[7]) / (x[7] - prev[7])
+            xg = (1 - lam) * prev + lam * x
+            xg[7] = w
+            xs, Gs, _, _, _ = _newton_ext(xg, T, par, rtol, active,
+                                          lambda xa, G, Ja: (np.eye(7)[6], xa[6] - w))
+            return xs, Gs, k + 1
+        if prev is not None and tau[6] <= 0:
+            raise RuntimeError("weight continuation turned back at w = %g" % x[7])
+        prev = x
+
+
+def secondary_fold(gamma, n, w=10., EI=1., GJ=0.75, EA=255., L=1., rtol=1e-12,
+                   seed_fraction=0.5, xtol=1e-13, record=False, stop_at_exit=True):
+    """First fold (maximum of ``Phi``) of the secondary branch number ``n``.
+
+    1. ``Phi_n < Phi_{n+1}``: critical twists of the straight weightless rod
+       (:func:`critical_twists`); seed twist
+       ``Phi_s = Phi_n + seed_fraction (Phi_{n+1} - Phi_n)``.
+    2. :func:`heavy_seed`: exact weightless straight state at ``Phi_s``,
+       continued in the weight to ``w`` at fixed ``T = gamma w L``, ``Phi_s``.
+    3. Pseudo-arclength continuation in ``(F2, F3, M1, M2, M3, l0, Phi)`` at
+       the full weight, from the seed with increasing ``Phi``, until the
+       ``Phi`` component of the tangent changes sign (fold bracket) or the rod
+       leaves the Eulerian domain (``min d3 . e1 <= 0``, checked at every
+       accepted point).
+    4. The fold is located by :func:`_locate_fold_ext` (Brent on
+       ``dPhi/dsigma``, exact by implicit differentiation).
+
+    Seeds from different ``seed_fraction`` lie on the same branch (checked
+    for ``gamma = 1, 5``: the folds agree to 1e-14).
+
+    Returns dict: ``phi_L``, ``stretch``, ``torque`` (``M . d3``, evaluated
+    at ``s = 0`` where ``d3 = e1``), ``l0``, ``min_d3_e1``, ``slope_turns``
+    (:func:`slope_turns`) at the fold, ``left_domain`` (False), and
+    ``dphi_dsigma`` (~0), ``residual``, ``x`` (the 8 shooting unknowns).  If
+    the rod reaches ``min d3 . e1 = 0`` first, the same fields are those of
+    the exit point and ``left_domain`` is True (or, with
+    ``stop_at_exit=False``, those of the fold outside the domain with the
+    exit point in ``exit``).  Also ``seed`` (the same fields at the seed, and
+    its ``x``), ``critical`` (``[Phi_n, Phi_{n+1}]``), ``n``, ``gamma`` and
+    the step counts ``weight_steps``, ``branch_steps``.
+    """
+    par = (EI, GJ, EA, L)
+    T = gamma * w * L
+    crit = critical_twists(gamma, n + 1, w=w, EI=EI, GJ=GJ, EA=EA, L=L)["phi_L"]
+    phi_s = crit[n - 1] + seed_fraction * (crit[n] - crit[n - 1])
+    xs, Gs, wsteps = heavy_seed(gamma, phi_s, w=w, EI=EI, GJ=GJ, EA=EA, L=L, rtol=rtol)
+
+    seed = _fold_fields(xs, Gs, T, par, rtol)
+    seed["x"] = xs.tolist()
+    out, steps = _trace_to_fold(xs, T, par, rtol, xtol, record, stop_at_exit)
+    out.update(seed=seed, critical=[float(crit[n - 1]), float(crit[n])],
+               weight_steps=wsteps, branch_steps=steps, n=n,
+               gamma=gamma)
+    return out

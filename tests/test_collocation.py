@@ -205,7 +205,7 @@ def _piece_polynomials(space, coef, nu_max):
     """Independent reconstruction of each polynomial piece: fit (exactly) the degree-d
     polynomial to d+1 Chebyshev points inside the subinterval, return the values of
     derivatives 0..nu_max at both ends of each piece."""
-    s = space.spline(coef)
+    s = lambda xs: space.evaluate(coef, xs)  # noqa: E731
     d = space.degree
     b = space.breakpoints
     left, right = [], []
@@ -629,7 +629,7 @@ def test_projection_reproduces_polynomials_of_degree_below_k_plus_m(k, m, N, see
     S = np.concatenate([b, rng.uniform(a, a + L, 50)])
     hmin = np.min(np.diff(b))
     for nu in range(m + 1):
-        got = s.spline(coef)(S, nu)
+        got = s.evaluate(coef, S, nu)
         # Markov: |f^(nu)| <= sum|c| d^{2 nu} (2/L)^nu; rounding of the coefficients
         # (least squares, cond <~ 1e3) is amplified by h^-nu in the derivatives
         scale = np.sum(np.abs(cheb)) * max(d, 1) ** (2 * nu) * (2 / L) ** nu
@@ -647,7 +647,7 @@ def test_projection_does_not_reproduce_degree_k_plus_m(k, m):
     Tn[-1] = 1.0  # T_{k+m} on [0, 1]: best approximation error by degree k+m-1 is 1
     f = lambda S: C.chebval(2 * S - 1, Tn)
     S = np.linspace(0, 1, 201)
-    assert np.max(np.abs(s.spline(s.interpolant_coefficients(f))(S) - f(S))) > 0.5
+    assert np.max(np.abs(s.evaluate(s.interpolant_coefficients(f), S) - f(S))) > 0.5
 
 
 def polynomial_problem(orders, k, N, seed):
@@ -740,3 +740,18 @@ def test_newton_converges_in_two_iterations_on_linear_problems():
         if not (r.converged and r.iterations <= 2):
             failures.append(((N, k), r.message, r.iterations, r.residual_norm, r.step_norm))
     assert not failures, failures
+
+
+@pytest.mark.parametrize("k,m", [(1, 1), (2, 3), (3, 2), (5, 3), (7, 1)])
+def test_spline_values_and_derivatives_match_scipy(k, m):
+    """The vectorised Cox-de Boor / Piegl-Tiller evaluation against scipy's BSpline."""
+    from scipy.interpolate import BSpline
+    rng = np.random.default_rng(7 * k + m)
+    b = _random_breakpoints(rng, 6)
+    s = SplineSpace(b, k, m)
+    coef = rng.normal(size=s.dim)
+    ref = BSpline(s.knots, coef, s.degree)
+    x = np.concatenate([rng.uniform(0, 1, 40), b])
+    for nu in range(min(m + 2, s.degree + 1)):
+        np.testing.assert_allclose(s.evaluate(coef, x, nu), ref(x, nu), rtol=1e-12,
+                                   atol=1e-12 * np.max(np.abs(ref(x, nu))))

@@ -8,7 +8,8 @@ import scipy.sparse as sp
 from scipy.optimize import brentq
 
 from rodcont.collocation import BVProblem, Collocation
-from rodcont.continuation import ContinuationSettings, Event, bordered, continuation, det_sign_log, factorise
+from rodcont.continuation import ContinuationSettings, Event, continuation
+from rodcont.linalg import LU, bordered
 
 BRATU_FOLD = 3.513830719125  # lambda* of u'' + lambda e^u = 0, u(0) = u(1) = 0
 
@@ -96,7 +97,7 @@ def test_det_sign_from_sparse_lu():
     rng = np.random.default_rng(0)
     for _ in range(20):
         A = rng.standard_normal((7, 7))
-        sign, log = det_sign_log(factorise(sp.csc_matrix(A)))
+        sign, log = LU(sp.csc_matrix(A)).det()
         d = np.linalg.det(A)
         assert sign == np.sign(d)
         assert log == pytest.approx(math.log(abs(d)), rel=1e-10)

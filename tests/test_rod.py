@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from rodcont.branch import solve_equilibrium
+from rodcont.drivers.solve import solve_equilibrium
 from rodcont.rod import EulerianRod, RodParameters, helical_waves
 
 import lagrangian_reference as lag

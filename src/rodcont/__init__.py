@@ -7,18 +7,39 @@ collocation at Gauss points, Keller pseudo-arclength continuation.
     >>> eq = rodcont.solve(gamma=1.0, phi_L=10.0)        # one equilibrium
     >>> br = rodcont.trace(gamma=1.0, out="g1.h5")       # a branch, with its folds
     >>> data = rodcont.load_branch("g1.h5")              # read a branch file
+
+Names are imported on first use, so ``import rodcont`` (and the command
+line) costs only what is used.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
-from .rod import RodParameters, EulerianRod, StraightReference, ReferenceCurve  # noqa: E402
-from .collocation import BVProblem, Collocation, NewtonResult  # noqa: E402
-from .continuation import ContinuationSettings, Tracker, Point, Event, continuation  # noqa: E402
-from .branch import solve_equilibrium as solve, trace, Branch, Equilibrium, RodSystem, ConvergenceError  # noqa: E402
-from .branchfile import load_branch, BranchFileError  # noqa: E402
+_API = {
+    "RodParameters": "rod", "EulerianRod": "rod", "StraightReference": "rod", "ReferenceCurve": "rod",
+    "BVProblem": "collocation", "Collocation": "collocation", "NewtonResult": "linalg",
+    "ContinuationSettings": "continuation", "Tracker": "continuation", "Point": "continuation",
+    "Event": "continuation",
+    "solve": ("drivers.solve", "solve_equilibrium"), "Equilibrium": "drivers.solve",
+    "ConvergenceError": "drivers.solve",
+    "trace": "drivers.trace", "TraceOptions": "drivers.trace", "Branch": "branch", "RodSystem": "system",
+    "fold_curve": "drivers.foldcurve", "critical_twists": "drivers.diagram", "diagram": "drivers.diagram",
+    "deflate": "drivers.diagram", "sweep": "drivers.sweep",
+    "load_branch": "branchfile", "load_diagram": "branchfile", "BranchFileError": "branchfile",
+}
 
-__all__ = [
-    "RodParameters", "EulerianRod", "StraightReference", "ReferenceCurve", "BVProblem", "Collocation",
-    "NewtonResult", "ContinuationSettings", "Tracker", "Point", "Event", "continuation", "solve", "trace",
-    "Branch", "Equilibrium", "RodSystem", "ConvergenceError", "load_branch", "BranchFileError",
-]
+__all__ = sorted(_API)
+
+
+def __getattr__(name):
+    target = _API.get(name)
+    if target is None:
+        raise AttributeError(f"module 'rodcont' has no attribute {name!r}")
+    module, attr = target if isinstance(target, tuple) else (target, name)
+    import importlib
+    value = getattr(importlib.import_module(f".{module}", __name__), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .continuation import bordered, factorise
+from .linalg import LU, bordered
 
 
 class FoldProblem:
@@ -49,19 +49,19 @@ class FoldProblem:
         v0 = np.asarray(v0, float)
         self.c = v0 / np.linalg.norm(v0)
         # left null vector: J^T w = 0 from the transposed bordered system with a trial border
-        lu = factorise(bordered(J, self.c, self.c, 0.0))
+        lu = LU(bordered(J, self.c, self.c, 0.0))
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
-        w = lu.solve(e, trans="T")[:-1]
+        w = lu.solve(e, trans=True)[:-1]
         self.b = w / np.linalg.norm(w)
 
     # ---- the test function and its null vectors -------------------------------
     def _null_vectors(self, J):
-        lu = factorise(bordered(J, self.b, self.c, 0.0))
+        lu = LU(bordered(J, self.b, self.c, 0.0))
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
         vg = lu.solve(e)
-        wg = lu.solve(e, trans="T")
+        wg = lu.solve(e, trans=True)
         return vg[:-1], wg[:-1], vg[-1]
 
     def test_function(self, x, p1, p2) -> float:
@@ -120,7 +120,7 @@ def bifurcating_direction(J, Fp, tx, tp, wx: float, wp: float, iterations: int =
     product ``wx x.y + wp p q`` and normalised in it.
     """
     A = bordered(J, np.asarray(Fp, float), wx * np.asarray(tx), wp * float(tp))
-    lu = factorise(A)
+    lu = LU(A)
     n = tx.size
     rng = np.random.default_rng(7)
     y = rng.standard_normal(n + 1)

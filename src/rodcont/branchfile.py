@@ -1,9 +1,10 @@
-"""HDF5 branch files: written point by point as a trace goes, readable at any moment.
+"""HDF5 branch files: complete at every moment, never written in place, checked when read.
 
 Layout (names are read by other tools; keep them)::
 
-    /                      attrs: rodcont_version, gamma, w, EI, GJ, EA, L, N, k,
-                                  stop_reason, param, weight_direction, min_alignment_guard
+    /                      attrs: rodcont_version, kind (branch | fold_curve | diagram), gamma, T,
+                                  w, EI, GJ, EA, L, N, k, param, weight_direction,
+                                  min_alignment_guard, max_error, stop_reason, settings (JSON)
     /branch/phi_L          (n,)   imposed end rotation, rad
     /branch/stretch        (n,)   (l - L) / L
     /branch/torque         (n,)   axial moment GJ u3
@@ -11,120 +12,331 @@ Layout (names are read by other tools; keep them)::
     /branch/helical_waves  (n,)   int
     /branch/min_alignment  (n,)   min over S of d3 . K3
     /branch/arclength      (n,)   pseudo-arclength of the tracker
-    /branch/defect         (n,)   relative residual between collocation points (error indicator)
-    /branch/kind           (n,)   bytes: start, regular, fold, branch_point, forced, bound, event:...
-    /branch/coefficients   (n, m) unknown vector x (B-spline coefficients, see /mesh)
-    /branch/breakpoints    (n, N+1) the partition each point was computed on (moves with --adapt)
+    /branch/defect         (n,)   relative residual between collocation points (indicator)
+    /branch/error          (n,)   estimated error of the outputs and the centreline (halved mesh)
     /branch/dphi_ds        (n,)   parameter component of the unit tangent (0 at a fold)
-    /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index
+    /branch/kind           (n,)   start, regular, fold, branch_point, forced, bound, event:<name>
+    /branch/located        (n,)   1, or 0 for a special point bracketed but not located
+    /branch/<param>        (n,)   the continued parameter, when it is not phi_L
+    /branch/coefficients   (n, m) unknown vector x of each point, NaN-padded (meshes differ)
+    /branch/breakpoints    (n, N+1) the partition each point lives on, NaN-padded
+    /branch/tangent        (n, m+1) unit tangent (x part, then parameter), float32, NaN-padded
+    /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index, located
     /branch_points/index, phi_L, stretch
-    /mesh/breakpoints      (N+1,) attrs: k, orders, fields, layout
+    /mesh/breakpoints      (N+1,) the first partition; attrs: k, orders, fields, layout
 
-Datasets are chunked, gzip-compressed and flushed after every point, so an
-interrupted run leaves a valid file holding every completed point.
+A diagram file holds ``/branches/<j>/`` with the ``branch``, ``folds`` and
+``branch_points`` groups of each branch (and its end reasons as attributes),
+and a top-level ``/folds`` table of every fold with a ``branch`` column.
+
+Safety. The file is built in memory (HDF5 core driver) and *published*:
+written whole to a temporary file beside the target, flushed to disk, and
+renamed over it (atomic on POSIX). A reader, a crash or a full disk therefore
+only ever sees the previous complete version or the new one. Each published
+file starts with a 512-byte user block (ignored by HDF5 readers: h5py,
+h5dump, MATLAB) holding a magic string and a BLAKE2 checksum of the rest, so
+a damaged file is rejected before HDF5 reads a byte of it. One writer per
+target: a lock file taken with ``flock`` refuses a second writer.
 """
 
 from __future__ import annotations
 
+import errno
+import hashlib
+import json
+import math
 import os
+import struct
+import subprocess
+import sys
+import time
 from dataclasses import dataclass
 
-import h5py
 import numpy as np
 
 from . import __version__
-from .rod import FIELDS, ORDERS, RodParameters
 
-SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "dphi_ds")
-FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index")
+SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "error", "dphi_ds")
+FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located")
+MAGIC = b"RODCONT-BRANCH-FILE\x00"
+HEADER = 512
 
 
 class BranchFileError(Exception):
-    """A file that cannot be read as a branch file (message says why)."""
+    """A file that cannot be read or written as a branch file (message says why, in one line)."""
 
 
-class BranchWriter:
-    """Appends points to a branch file; ``close(stop_reason)`` ends it.
+# --------------------------------------------------------------------------
+# Paths: distinct inputs and outputs, locks, atomic publication
+# --------------------------------------------------------------------------
+def same_file(a: str, b: str) -> bool:
+    """Do two paths name the same file (symlinks, hard links, ``//``, ``/proc/self/cwd``...)?"""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.realpath(a) == os.path.realpath(b)
 
-    ``meta``: root attributes (gamma, rod parameters, N, k, ...).
-    """
 
-    def __init__(self, path: str, meta: dict, size: int, breakpoints: np.ndarray, extra_columns: tuple = ()):
-        self.path = path
-        self.f = h5py.File(path, "w")
-        self.f.attrs["rodcont_version"] = __version__
-        self.f.attrs["stop_reason"] = "running"
-        for key, val in meta.items():
-            self.f.attrs[key] = val
-        g = self.f.create_group("branch")
+def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--out") -> str:
+    """Validate an output path before any work: not an input, its directory exists and is
+    writable, an existing file only with ``overwrite``. Returns the path; raises ``BranchFileError``."""
+    if not isinstance(path, str) or not path.strip():
+        raise BranchFileError(f"{what} needs a file name")
+    for src in inputs:
+        if src is not None and same_file(path, src):
+            raise BranchFileError(f"{what} {path} is the input file {src}: write to another file")
+    d = os.path.dirname(os.path.abspath(path)) or "."
+    if not os.path.isdir(d):
+        raise BranchFileError(f"cannot write {path}: directory {d} does not exist")
+    if os.path.isdir(path):
+        raise BranchFileError(f"cannot write {path}: it is a directory")
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise BranchFileError(f"cannot write {path}: directory {d} is not writable")
+    if os.path.lexists(path) and not overwrite:
+        raise BranchFileError(f"{path} exists: choose another {what} or add --overwrite to replace it")
+    if os.path.exists(path) and not os.path.isfile(os.path.realpath(path)):
+        raise BranchFileError(f"cannot write {path}: not a regular file")
+    return path
+
+
+class OutputLock:
+    """``flock`` on ``.<name>.lock`` beside the (resolved) target: one writer per file."""
+
+    def __init__(self, path: str):
+        import fcntl
+        real = os.path.realpath(path)
+        self.lock_path = os.path.join(os.path.dirname(real), "." + os.path.basename(real) + ".lock")
+        try:
+            self.fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise BranchFileError(f"cannot write {path}: {exc.strerror}") from None
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            self.fd = None
+            raise BranchFileError(f"{path} is being written by another rodcont process: "
+                                  f"wait for it or choose another output") from None
+
+    def release(self) -> None:
+        if self.fd is not None:
+            try:
+                os.unlink(self.lock_path)
+            except OSError:
+                pass
+            os.close(self.fd)
+            self.fd = None
+
+
+def _header(image: bytes) -> bytes:
+    digest = hashlib.blake2b(image, digest_size=32).digest()
+    head = MAGIC + struct.pack("<IQ", 1, len(image)) + digest
+    return head + b"\0" * (HEADER - len(head))
+
+
+def publish(path: str, image: bytes) -> None:
+    """Write ``header + image`` to a temporary file beside ``path``, sync it, rename it over ``path``."""
+    real = os.path.realpath(path)
+    d = os.path.dirname(real)
+    tmp = os.path.join(d, f".{os.path.basename(real)}.{os.getpid()}.tmp")
+    data = _header(image) + image
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, real)
+    except OSError as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        why = {errno.ENOSPC: "no space left on the device", errno.EFBIG: "file size limit exceeded",
+               errno.EDQUOT: "disk quota exceeded"}.get(exc.errno, exc.strerror or str(exc))
+        raise BranchFileError(f"cannot write {path}: {why}") from None
+    try:
+        dfd = os.open(d, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+
+
+# --------------------------------------------------------------------------
+# Writing
+# --------------------------------------------------------------------------
+def _h5py():
+    import h5py
+    return h5py
+
+
+class _Group:
+    """One branch's ``branch``, ``folds`` and ``branch_points`` groups inside the in-memory file."""
+
+    def __init__(self, root, extra_columns: tuple, attrs: dict | None = None):
+        h5py = _h5py()
+        self.root = root
+        for key, val in (attrs or {}).items():
+            root.attrs[key] = val
+        g = root.create_group("branch")
         self.columns = SCALARS + tuple(extra_columns)
         for name in self.columns:
             g.create_dataset(name, (0,), maxshape=(None,), dtype="f8", chunks=(256,), compression="gzip")
         g.create_dataset("helical_waves", (0,), maxshape=(None,), dtype="i4", chunks=(256,), compression="gzip")
-        g.create_dataset("kind", (0,), maxshape=(None,), dtype="S32", chunks=(256,), compression="gzip")
-        g.create_dataset("coefficients", (0, size), maxshape=(None, size), dtype="f8",
-                         chunks=(16, size), compression="gzip", shuffle=True)
-        nb = len(breakpoints)
-        g.create_dataset("breakpoints", (0, nb), maxshape=(None, nb), dtype="f8", chunks=(64, nb), compression="gzip")
-        fo = self.f.create_group("folds")
+        g.create_dataset("located", (0,), maxshape=(None,), dtype="i1", chunks=(256,), compression="gzip")
+        g.create_dataset("kind", (0,), maxshape=(None,), dtype=h5py.string_dtype(), chunks=(256,))
+        self.width = 0
+        self.nb = 0
+        self.n = 0
+        self.g = g
+        self._folds = None
+        self._bps = None
+
+    def _matrix(self, name, width, dtype):
+        g = self.g
+        if name not in g:
+            g.create_dataset(name, (self.n, width), maxshape=(None, None), dtype=dtype, fillvalue=np.nan,
+                             chunks=(16, max(min(width, 4096), 1)), compression="gzip", shuffle=True)
+        ds = g[name]
+        if ds.shape[1] < width:
+            ds.resize(width, axis=1)
+        return ds
+
+    def add(self, row: dict, kind: str, located: bool, x, tangent, breakpoints) -> None:
+        g, i = self.g, self.n
+        for name in self.columns:
+            ds = g[name]
+            ds.resize(i + 1, axis=0)
+            ds[i] = float(row[name])
+        for name, val in (("helical_waves", int(row["helical_waves"])), ("located", int(bool(located))),
+                          ("kind", str(kind))):
+            ds = g[name]
+            ds.resize(i + 1, axis=0)
+            ds[i] = val
+        for name, vec, dtype in (("coefficients", x, "f8"), ("tangent", tangent, "f4"),
+                                 ("breakpoints", breakpoints, "f8")):
+            vec = np.asarray(vec)
+            ds = self._matrix(name, vec.size, dtype)
+            ds.resize(i + 1, axis=0)
+            ds[i, :vec.size] = vec
+        self.n += 1
+
+    def set_special(self, folds: list[dict], branch_points: list[dict]) -> None:
+        """Rewrite the fold and branch-point tables (waves and sides are known only as the branch grows)."""
+        for name in ("folds", "branch_points"):
+            if name in self.root:
+                del self.root[name]
+        fo = self.root.create_group("folds")
         for name in FOLD_FIELDS:
             dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
-            fo.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(64,))
-        bp = self.f.create_group("branch_points")
+            fo.create_dataset(name, data=np.array([f[name] for f in folds], dtype=dt).reshape(-1))
+        bp = self.root.create_group("branch_points")
         for name in ("index", "phi_L", "stretch"):
-            bp.create_dataset(name, (0,), maxshape=(None,), dtype="i8" if name == "index" else "f8", chunks=(64,))
-        mesh = self.f.create_group("mesh")
-        mesh.create_dataset("breakpoints", data=np.asarray(breakpoints, float))
-        mesh.attrs["orders"] = np.asarray(ORDERS)
-        mesh.attrs["fields"] = ",".join(FIELDS)
-        mesh.attrs["layout"] = "rodcont.collocation.Collocation interleaved coefficients"
-        self.n = 0
+            bp.create_dataset(name, data=np.array([b[name] for b in branch_points],
+                                                  dtype="i8" if name == "index" else "f8").reshape(-1))
+
+
+class BranchWriter:
+    """A branch file (or a diagram file of several branches) built in memory and published.
+
+    ``meta``: root attributes. ``group(path)`` opens a branch group (``"/"`` for
+    a trace file, ``"branches/<j>"`` in a diagram). ``flush()`` publishes the
+    file now; ``maybe_flush()`` when ``interval`` seconds have passed (the
+    interval grows if publishing gets slow, so that at most about a tenth of
+    the time goes into it). Nothing is written to ``path`` before the first
+    point: a run that finds none leaves the target as it was.
+    """
+
+    def __init__(self, path: str, meta: dict, interval: float = 1.0, lock: bool = True):
+        h5py = _h5py()
+        self.path = path
+        self.lock = OutputLock(path) if lock else None
+        self.f = h5py.File(f"rodcont-{id(self)}-{time.monotonic_ns()}", "w", driver="core", backing_store=False)
+        self.f.attrs["rodcont_version"] = __version__
+        self.f.attrs["stop_reason"] = "running"
+        for key, val in meta.items():
+            self.f.attrs[key] = _attr(val)
+        self.groups: dict[str, _Group] = {}
+        self.interval = interval
+        self.last = time.monotonic()
+        self.flush_time = 0.0
+        self.points = 0
+        self.published = 0
+        self.closed = False
+
+    def group(self, where: str = "/", extra_columns: tuple = (), attrs: dict | None = None) -> _Group:
+        if where not in self.groups:
+            root = self.f if where == "/" else self.f.require_group(where)
+            self.groups[where] = _Group(root, extra_columns, {k: _attr(v) for k, v in (attrs or {}).items()})
+        return self.groups[where]
+
+    def set_attr(self, key, value, where: str = "/") -> None:
+        (self.f if where == "/" else self.f[where]).attrs[key] = _attr(value)
+
+    def add_point(self, grp: _Group, row, kind, located, x, tangent, breakpoints) -> None:
+        grp.add(row, kind, located, x, tangent, breakpoints)
+        self.points += 1
+
+    def flush(self) -> None:
+        """Publish the file as it is now (only once it holds a point)."""
+        if self.points == 0 or self.closed:
+            return
+        t = time.monotonic()
         self.f.flush()
+        publish(self.path, self.f.id.get_file_image())
+        self.published = self.points
+        self.flush_time = time.monotonic() - t
+        self.last = time.monotonic()
+        self.interval = max(self.interval, 10.0 * self.flush_time)
 
-    @staticmethod
-    def _append(ds, value):
-        n = ds.shape[0]
-        ds.resize(n + 1, axis=0)
-        ds[n] = value
+    def due(self) -> bool:
+        """Is a publication due (the first point, or ``interval`` seconds since the last one)?"""
+        return self.published == 0 or time.monotonic() - self.last >= self.interval
 
-    def add(self, data: dict, kind: str, x: np.ndarray, breakpoints: np.ndarray | None = None):
-        g = self.f["branch"]
-        for name in self.columns:
-            self._append(g[name], float(data[name]))
-        self._append(g["helical_waves"], int(data["helical_waves"]))
-        self._append(g["kind"], kind.encode()[:32])
-        self._append(g["coefficients"], x)
-        self._append(g["breakpoints"], self.f["mesh/breakpoints"][()] if breakpoints is None else breakpoints)
-        self.n += 1
-        self.f.flush()
+    def maybe_flush(self) -> None:
+        if self.due():
+            self.flush()
 
-    def add_fold(self, fold: dict) -> None:
-        fo = self.f["folds"]
-        for name in FOLD_FIELDS:
-            self._append(fo[name], fold[name])
-        self.f.flush()
-
-    def add_branch_point(self, index: int, data: dict) -> None:
-        bp = self.f["branch_points"]
-        self._append(bp["index"], index)
-        self._append(bp["phi_L"], data["phi_L"])
-        self._append(bp["stretch"], data["stretch"])
-        self.f.flush()
-
-    def set_attr(self, key, value) -> None:
-        self.f.attrs[key] = value
-        self.f.flush()
-
-    def close(self, stop_reason: str) -> None:
-        if self.f:
-            self.f.attrs["stop_reason"] = stop_reason
-            self.f.close()
-            self.f = None
+    def close(self, stop_reason: str | None = None) -> None:
+        """Set the stop reason, publish (if any point) and release the lock; idempotent."""
+        if self.closed:
+            return
+        try:
+            if stop_reason is not None:
+                self.f.attrs["stop_reason"] = stop_reason
+            self.flush()
+        finally:
+            self.closed = True
+            try:
+                self.f.close()
+            finally:
+                if self.lock is not None:
+                    self.lock.release()
 
 
+def _attr(v):
+    if isinstance(v, (dict, list)) and not isinstance(v, np.ndarray):
+        return json.dumps(v, default=float)
+    if v is None:
+        return "none"
+    return v
+
+
+# --------------------------------------------------------------------------
+# Reading
+# --------------------------------------------------------------------------
 @dataclass
 class BranchData:
-    """A branch file read into memory."""
+    """A branch read into memory (a trace file, or one branch of a diagram file)."""
 
     path: str
     attrs: dict
@@ -132,12 +344,15 @@ class BranchData:
     folds: dict
     branch_points: dict
     breakpoints: np.ndarray
+    group_attrs: dict | None = None
+    name: str = ""                 # "" for a trace file, "<j>" for a diagram branch
 
     def __len__(self) -> int:
         return len(self.branch["phi_L"])
 
     @property
-    def rod(self) -> RodParameters:
+    def rod(self):
+        from .rod import RodParameters
         a = self.attrs
         return RodParameters(EI=a["EI"], GJ=a["GJ"], EA=a["EA"], w=a["w"], L=a["L"],
                              weight_direction=tuple(a.get("weight_direction", (0.0, 0.0, -1.0))))
@@ -145,6 +360,19 @@ class BranchData:
     @property
     def gamma(self) -> float:
         return float(self.attrs["gamma"])
+
+    @property
+    def tension(self) -> float:
+        a = self.attrs
+        return float(a["T"]) if "T" in a else float(a["gamma"]) * float(a["w"]) * float(a["L"])
+
+    @property
+    def param(self) -> str:
+        return str(self.attrs.get("param", "phi_L"))
+
+    @property
+    def label(self) -> str:
+        return f"{self.path}:{self.name}" if self.name else self.path
 
     def resolve(self, label: str | int) -> int:
         """Point index of ``label``: an integer (point, from 0; negative from the end),
@@ -156,79 +384,247 @@ class BranchData:
                 j = int(s[2:])
                 idx = self.branch_points["index"]
                 if not 1 <= j <= len(idx):
-                    raise BranchFileError(f"{self.path} has {len(idx)} branch point(s); {s} does not exist")
+                    raise BranchFileError(f"{self.label} has {len(idx)} branch point(s); {s} does not exist")
                 return int(idx[j - 1])
             if s.upper().startswith("F"):
                 j = int(s[1:])
                 idx = self.folds["index"]
                 if not 1 <= j <= len(idx):
-                    raise BranchFileError(f"{self.path} has {len(idx)} fold(s); {s} does not exist")
+                    raise BranchFileError(f"{self.label} has {len(idx)} fold(s); {s} does not exist")
                 return int(idx[j - 1])
             i = int(s)
         except ValueError:
             raise BranchFileError(f"point label {s!r}: expected an integer index, F<j> or BP<j>") from None
         if not -n <= i < n:
-            raise BranchFileError(f"{self.path} has {n} point(s); index {i} is out of range")
+            raise BranchFileError(f"{self.label} has {n} point(s); index {i} is out of range")
         return i % n
 
     def point(self, label) -> dict:
         i = self.resolve(label)
         out = {name: self.branch[name][i] for name in self.branch if self.branch[name].ndim == 1}
-        out["x"] = self.branch["coefficients"][i]
-        out["breakpoints"] = self.branch["breakpoints"][i] if "breakpoints" in self.branch else self.breakpoints
+        b = self.branch["breakpoints"][i]
+        b = b[np.isfinite(b)]
+        x = self.branch["coefficients"][i]
+        out["breakpoints"] = b
+        out["x"] = x[np.isfinite(x)]
         out["index"] = i
         out["direction"] = self.direction(i)
         return out
 
     def direction(self, i: int) -> tuple[np.ndarray, float]:
-        """Direction of travel at point ``i``: the secant from the previous point
-        (from point 0: towards the next one, or increasing phi_L)."""
-        X, P = self.branch["coefficients"], self.branch["phi_L"]
-        B = self.branch.get("breakpoints")
+        """Direction of travel at point ``i``: the stored unit tangent (its parameter part last)."""
+        t = self.branch.get("tangent")
+        if t is not None:
+            v = np.asarray(t[i], float)
+            v = v[np.isfinite(v)]
+            if v.size and np.all(np.isfinite(v)) and np.any(v != 0):
+                return v[:-1], float(v[-1])
+        X = self.branch["coefficients"]
+        P = self.branch[self.param if self.param in self.branch else "phi_L"]
+        if i > 0 and np.array_equal(np.isfinite(X[i]), np.isfinite(X[i - 1])):
+            d = X[i] - X[i - 1]
+            return d[np.isfinite(d)], float(P[i] - P[i - 1])
+        return np.zeros(int(np.isfinite(X[i]).sum())), 1.0
 
-        def same_mesh(a, b):  # coefficients on different meshes cannot be subtracted
-            return B is None or np.array_equal(B[a], B[b])
 
-        if i > 0 and same_mesh(i, i - 1):
-            return X[i] - X[i - 1], float(P[i] - P[i - 1])
-        if i + 1 < len(P) and same_mesh(i, i + 1):
-            return X[i + 1] - X[i], float(P[i + 1] - P[i])
-        dphi = float(P[i] - P[i - 1]) if i > 0 else 1.0
-        return np.zeros_like(X[0]), 1.0 if dphi >= 0 else -1.0
+@dataclass
+class DiagramData:
+    """A diagram file: its branches and the fold table of all of them."""
+
+    path: str
+    attrs: dict
+    branches: list
+    folds: dict
+
+    def __len__(self) -> int:
+        return len(self.branches)
 
 
-def load_branch(path: str) -> BranchData:
-    """Read a branch file; raises :class:`BranchFileError` with a one-line reason if it is not one."""
+def _check_file(path: str) -> None:
+    """Refuse a file that is not there, not a file, or damaged, before HDF5 reads it.
+
+    A file with rodcont's header must match its checksum. A file without one (written by
+    another program, or edited in place) is first opened in a child process: HDF5 can
+    crash on a damaged file, and a crash there is a refusal here, not a crash of ours.
+    """
     if not os.path.exists(path):
         raise BranchFileError(f"{path}: no such file")
     if not os.path.isfile(path):
         raise BranchFileError(f"{path}: not a file")
     try:
-        f = h5py.File(path, "r")
+        with open(path, "rb") as fh:
+            head = fh.read(HEADER)
+            if head.startswith(MAGIC) and len(head) == HEADER:
+                _, length = struct.unpack("<IQ", head[len(MAGIC):len(MAGIC) + 12])
+                digest = head[len(MAGIC) + 12:len(MAGIC) + 44]
+                image = fh.read()
+                if len(image) != length or hashlib.blake2b(image, digest_size=32).digest() != digest:
+                    raise BranchFileError(f"{path}: damaged branch file (checksum mismatch: the file was "
+                                          f"changed or truncated after rodcont wrote it)")
+                return
     except OSError as exc:
-        raise BranchFileError(f"{path}: not a readable HDF5 file ({str(exc).split(':')[0]})") from None
-    with f:
-        if "rodcont_version" not in f.attrs or "branch" not in f:
-            raise BranchFileError(f"{path}: an HDF5 file, but not a rodcont branch file")
-        try:
-            attrs = {k: _plain(v) for k, v in f.attrs.items()}
-            branch = {k: f["branch"][k][()] for k in f["branch"]}
-            folds = {k: f["folds"][k][()] for k in f["folds"]} if "folds" in f else {}
-            bps = {k: f["branch_points"][k][()] for k in f["branch_points"]} if "branch_points" in f else {"index": np.zeros(0, int)}
-            breakpoints = f["mesh"]["breakpoints"][()] if "mesh" in f else None
-        except (KeyError, OSError) as exc:
-            raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
-    lengths = {k: len(v) for k, v in branch.items()}
-    n = min(lengths.values()) if lengths else 0
-    branch = {k: v[:n] for k, v in branch.items()}  # an interrupted write may leave one column longer
-    if "kind" in branch:
-        branch["kind"] = np.array([k.decode() if isinstance(k, bytes) else str(k) for k in branch["kind"]])
-    return BranchData(path, attrs, branch, folds, bps, breakpoints)
+        raise BranchFileError(f"{path}: cannot read ({exc.strerror})") from None
+    code = ("import sys, h5py\nf = h5py.File(sys.argv[1], 'r')\n"
+            "def visit(name, obj):\n    obj.attrs.keys()\n    [obj.attrs[k] for k in obj.attrs]\n"
+            "    if isinstance(obj, h5py.Dataset):\n        obj[()]\n"
+            "f.visititems(visit)\n[f.attrs[k] for k in f.attrs]\n")
+    try:
+        r = subprocess.run([sys.executable, "-c", code, path], capture_output=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        raise BranchFileError(f"{path}: cannot be checked (reading it took too long)") from None
+    if r.returncode != 0:
+        kind = "crashes HDF5" if r.returncode < 0 else "not a readable HDF5 file"
+        raise BranchFileError(f"{path}: {kind}")
 
 
 def _plain(v):
     if isinstance(v, bytes):
-        return v.decode()
+        return v.decode("utf-8", errors="replace")
     if isinstance(v, np.generic):
         return v.item()
     return v
+
+
+_ROOT_NUMBERS = {"EI": "positive", "GJ": "positive", "EA": "positive", "L": "positive", "w": "nonnegative",
+                 "gamma": "finite", "k": "k"}
+
+
+def _validate_attrs(path: str, attrs: dict) -> dict:
+    if attrs.get("w") == 0 and isinstance(attrs.get("gamma"), float) and math.isnan(attrs["gamma"]):
+        attrs = dict(attrs, gamma=0.0, gamma_undefined=True)  # weightless: the tension T is the load
+    for key, rule in _ROOT_NUMBERS.items():
+        if key not in attrs:
+            raise BranchFileError(f"{path}: not a rodcont branch file (attribute {key} missing)")
+        v = attrs[key]
+        if isinstance(v, (bool, str, bytes)) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BranchFileError(f"{path}: damaged branch file (attribute {key} = {v!r} is not a finite number)")
+        if rule == "positive" and v <= 0 or rule == "nonnegative" and v < 0:
+            raise BranchFileError(f"{path}: damaged branch file (attribute {key} = {v!r} out of range)")
+        if rule == "k" and not (float(v).is_integer() and 1 <= v <= 7):
+            raise BranchFileError(f"{path}: damaged branch file (k = {v!r} is not an integer in 1..7)")
+    wd = np.asarray(attrs.get("weight_direction", (0.0, 0.0, -1.0)))
+    if wd.shape != (3,) or not np.all(np.isfinite(wd.astype(float))) or not np.any(wd != 0):
+        raise BranchFileError(f"{path}: damaged branch file (weight_direction)")
+    if "T" in attrs and not (isinstance(attrs["T"], (int, float)) and math.isfinite(attrs["T"])):
+        raise BranchFileError(f"{path}: damaged branch file (attribute T)")
+    return attrs
+
+
+def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
+    h5py = _h5py()
+    where = f"{path}:{name}" if name else path
+    if "branch" not in root or not isinstance(root["branch"], h5py.Group):
+        raise BranchFileError(f"{where}: not a rodcont branch (no /branch group)")
+    branch = {}
+    for key, obj in root["branch"].items():
+        if not isinstance(obj, h5py.Dataset):
+            raise BranchFileError(f"{where}: damaged branch file (/branch/{key} is not a dataset)")
+        branch[key] = obj[()]
+    for req in ("phi_L", "stretch", "torque", "l0", "coefficients", "kind"):
+        if req not in branch:
+            raise BranchFileError(f"{where}: damaged branch file (/branch/{req} missing)")
+    n = min(len(v) for v in branch.values())
+    branch = {k: v[:n] for k, v in branch.items()}
+    branch["kind"] = np.array([_plain(k) for k in branch["kind"]], dtype=object).astype(str)
+    X = np.asarray(branch["coefficients"], float)
+    if X.ndim != 2:
+        raise BranchFileError(f"{where}: damaged branch file (/branch/coefficients is not a table)")
+    if "breakpoints" not in branch:
+        b0 = root["mesh"]["breakpoints"][()] if "mesh" in root else root.file["mesh"]["breakpoints"][()]
+        branch["breakpoints"] = np.tile(b0, (n, 1))
+    B = np.asarray(branch["breakpoints"], float)
+    k = int(attrs["k"])
+    for i in range(n):
+        b = B[i][np.isfinite(B[i])]
+        x = X[i][np.isfinite(X[i])]
+        if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11:
+            raise BranchFileError(f"{where}: damaged branch file (point {i}: coefficients do not fit its mesh)")
+    folds, bps = {}, {"index": np.zeros(0, int)}
+    for group, target in (("folds", folds), ("branch_points", bps)):
+        if group in root:
+            if not isinstance(root[group], h5py.Group):
+                raise BranchFileError(f"{where}: damaged branch file (/{group} is not a group)")
+            for key, obj in root[group].items():
+                target[key] = np.asarray(obj[()])
+            idx = np.asarray(target.get("index", np.zeros(0, int)))
+            if idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= n):
+                raise BranchFileError(f"{where}: damaged branch file (/{group}/index out of range)")
+    gattrs = {k: _plain(v) for k, v in root.attrs.items()} if name else None
+    mesh = root.file["mesh"]["breakpoints"][()] if "mesh" in root.file else B[0][np.isfinite(B[0])]
+    return BranchData(path, attrs, branch, folds, bps, mesh, gattrs, name)
+
+
+def _open(path: str):
+    _check_file(path)
+    h5py = _h5py()
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise BranchFileError(f"{path}: not a readable HDF5 file ({str(exc).split(':')[0]})") from None
+
+
+def _root_attrs(path: str, f) -> dict:
+    if "rodcont_version" not in f.attrs:
+        raise BranchFileError(f"{path}: an HDF5 file, but not a rodcont branch file")
+    try:
+        attrs = {k: _plain(v) for k, v in f.attrs.items()}
+    except (OSError, ValueError, TypeError) as exc:
+        raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
+    return _validate_attrs(path, attrs)
+
+
+_READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDecodeError, AttributeError)
+
+
+def load_branch(path: str, branch: str | int | None = None) -> BranchData:
+    """Read a branch file (or branch ``<j>`` of a diagram file); :class:`BranchFileError` with a one-line reason otherwise."""
+    f = _open(path)
+    try:
+        with f:
+            attrs = _root_attrs(path, f)
+            if "branches" in f:
+                names = sorted(f["branches"].keys(), key=lambda s: (len(s), s))
+                if branch is None:
+                    if len(names) != 1:
+                        raise BranchFileError(f"{path} is a diagram of {len(names)} branches: "
+                                              f"name one as {path}:<j>:POINT (j in {', '.join(names)})")
+                    branch = names[0]
+                if str(branch) not in names:
+                    raise BranchFileError(f"{path} has no branch {branch} (branches: {', '.join(names)})")
+                return _read_group(path, f["branches"][str(branch)], attrs, str(branch))
+            if branch is not None:
+                raise BranchFileError(f"{path} is a single branch, not a diagram: no branch {branch}")
+            return _read_group(path, f, attrs)
+    except BranchFileError:
+        raise
+    except _READ_ERRORS as exc:
+        raise BranchFileError(f"{path}: damaged branch file ({type(exc).__name__}: {str(exc)[:120]})") from None
+
+
+def load_diagram(path: str) -> DiagramData:
+    """Read a diagram file (a trace file reads as a diagram of one branch)."""
+    f = _open(path)
+    try:
+        with f:
+            attrs = _root_attrs(path, f)
+            if "branches" not in f:
+                return DiagramData(path, attrs, [_read_group(path, f, attrs)], {})
+            names = sorted(f["branches"].keys(), key=lambda s: (len(s), s))
+            branches = [_read_group(path, f["branches"][nm], attrs, nm) for nm in names]
+            folds = {k: np.asarray(v[()]) for k, v in f["folds"].items()} if "folds" in f else {}
+            return DiagramData(path, attrs, branches, folds)
+    except BranchFileError:
+        raise
+    except _READ_ERRORS as exc:
+        raise BranchFileError(f"{path}: damaged branch file ({type(exc).__name__}: {str(exc)[:120]})") from None
+
+
+def split_spec(spec: str, what: str = "--start") -> tuple[str, str | None, str]:
+    """``FILE.h5:POINT`` or ``FILE.h5:<j>:POINT`` (a branch of a diagram) -> ``(path, branch, point)``."""
+    parts = spec.rsplit(":", 2)
+    if len(parts) < 2 or not parts[-1]:
+        raise BranchFileError(f"{what} expects FILE.h5:POINT or FILE.h5:BRANCH:POINT (a point index, F<j> "
+                              f"or BP<j>), got {spec!r}")
+    if len(parts) == 3 and os.path.exists(parts[0]) and not os.path.exists(parts[0] + ":" + parts[1]):
+        return parts[0], parts[1], parts[2]
+    return ":".join(parts[:-1]), None, parts[-1]

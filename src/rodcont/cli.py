@@ -1,8 +1,11 @@
-"""The ``rodcont`` command line: solve, trace, folds, plot, shape.
+"""The ``rodcont`` command line: solve, trace, critical, diagram, folds, plot, shape, fold-curve, sweep.
 
-Every error a user can cause (bad numbers, missing or foreign files, an output
-directory that does not exist, no convergence) ends in one line on stderr and
-exit status 2; no traceback, no half-written output file.
+Every error a user can cause (bad numbers, missing, foreign or damaged files,
+an output that exists or is an input, no convergence) ends in one line on
+stderr and exit status 2; no traceback (``--debug`` shows one), no half-written
+output file, no input changed. Ctrl-C and SIGTERM end a trace between two
+points with every point on disk (exit 130 / 143). Only what a command needs is
+imported: ``rodcont --version`` costs no numpy.
 """
 
 from __future__ import annotations
@@ -14,7 +17,6 @@ import sys
 import time
 
 import click
-import numpy as np
 
 EXIT_USAGE = 2
 
@@ -26,38 +28,41 @@ class UserError(click.ClickException):
 # --------------------------------------------------------------------------
 # Validation helpers
 # --------------------------------------------------------------------------
-def _positive(name):
+def _number(name, positive=False, nonnegative=False):
     def check(ctx, param, value):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise click.BadParameter(f"must be a positive number, got {value:g}", param_hint=name)
+        if value is None:
+            return value
+        values = value if isinstance(value, tuple) else (value,)
+        for v in values:
+            if not math.isfinite(v):
+                raise click.BadParameter(f"must be a finite number, got {v}", param_hint=name)
+            if positive and not v > 0:
+                raise click.BadParameter(f"must be a positive number, got {v:g}", param_hint=name)
+            if nonnegative and not v >= 0:
+                raise click.BadParameter(f"must be a non-negative number, got {v:g}", param_hint=name)
         return value
     return check
 
 
-def _finite(name):
-    def check(ctx, param, value):
-        if value is not None and not math.isfinite(value):
-            raise click.BadParameter(f"must be a finite number, got {value}", param_hint=name)
-        return value
-    return check
+ROD_OPTION_NAMES = ("N", "k", "w", "EI", "GJ", "EA", "L")
 
 
 def rod_options(f):
     """Rod and mesh options shared by every command that builds a rod (paper values by default)."""
     opts = [
-        click.option("--N", "N", type=click.IntRange(1, 2000), default=15, show_default=True,
-                     help="number of uniform subintervals"),
+        click.option("--N", "N", type=click.IntRange(1, 100000), default=15, show_default=True,
+                     help="number of subintervals of the (first) mesh"),
         click.option("--k", "k", type=click.IntRange(1, 7), default=5, show_default=True,
                      help="Gauss collocation points per subinterval"),
-        click.option("--w", "w", type=float, default=10.0, show_default=True, callback=_finite("--w"),
+        click.option("--w", "w", type=float, default=10.0, show_default=True, callback=_number("--w", nonnegative=True),
                      help="weight per unit unstressed length (>= 0)"),
-        click.option("--EI", "EI", type=float, default=1.0, show_default=True, callback=_positive("--EI"),
+        click.option("--EI", "EI", type=float, default=1.0, show_default=True, callback=_number("--EI", positive=True),
                      help="bending stiffness"),
-        click.option("--GJ", "GJ", type=float, default=0.75, show_default=True, callback=_positive("--GJ"),
+        click.option("--GJ", "GJ", type=float, default=0.75, show_default=True, callback=_number("--GJ", positive=True),
                      help="torsional stiffness"),
-        click.option("--EA", "EA", type=float, default=255.0, show_default=True, callback=_positive("--EA"),
+        click.option("--EA", "EA", type=float, default=255.0, show_default=True, callback=_number("--EA", positive=True),
                      help="axial stiffness"),
-        click.option("--L", "L", type=float, default=1.0, show_default=True, callback=_positive("--L"),
+        click.option("--L", "L", type=float, default=1.0, show_default=True, callback=_number("--L", positive=True),
                      help="span (length of the straight reference curve)"),
     ]
     for opt in reversed(opts):
@@ -65,60 +70,215 @@ def rod_options(f):
     return f
 
 
+def trace_options(f):
+    """Options of every traced branch (trace, diagram, sweep)."""
+    opts = [
+        click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_number("--phi-max")),
+        click.option("--phi-min", type=float, default=-1.0, show_default=True, callback=_number("--phi-min")),
+        click.option("--stretch-max", type=float, default=None, callback=_number("--stretch-max"),
+                     help="stop when the stretch reaches this value"),
+        click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True),
+        click.option("--ds", type=float, default=0.1, show_default=True, callback=_number("--ds", positive=True),
+                     help="first pseudo-arclength step"),
+        click.option("--ds-max", type=float, default=0.5, show_default=True,
+                     callback=_number("--ds-max", positive=True)),
+        click.option("--ds-min", type=float, default=1e-6, show_default=True,
+                     callback=_number("--ds-min", positive=True),
+                     help="the trace stops when the step must shrink below this"),
+        click.option("--min-alignment", type=float, default=0.05, show_default=True,
+                     callback=_number("--min-alignment"),
+                     help="validity guard: stop where min d3.K3 falls to this (in [0, 1))"),
+        click.option("--max-error", type=float, default=1e-6, show_default=True,
+                     callback=_number("--max-error", positive=True),
+                     help="accuracy guard: the estimated error of the outputs and centreline (relative)"),
+        click.option("--max-defect", type=float, default=None, callback=_number("--max-defect", positive=True),
+                     hidden=True, help="old name of --max-error"),
+        click.option("--fold-error", type=float, default=1e-9, show_default=True,
+                     callback=_number("--fold-error", positive=True),
+                     help="a fold with a larger estimated error is located again on a refined mesh"),
+        click.option("--forced", type=float, multiple=True, callback=_number("--forced"),
+                     help="a Phi value that gets a point of its own (repeatable)"),
+        click.option("--uniform", is_flag=True, help="keep the first mesh (no adaptation)"),
+        click.option("--N-max", "N_max", type=click.IntRange(1, 100000), default=400, show_default=True,
+                     help="largest number of subintervals the adaptive mesh may use"),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+def _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+                  max_defect, fold_error, forced, uniform, N_max):
+    ctx = click.get_current_context()
+    if ds > ds_max and ctx.get_parameter_source("ds") == click.core.ParameterSource.DEFAULT:
+        ds = ds_max  # only --ds-max was given: start at it
+    if not ds_min <= ds <= ds_max:
+        raise UserError(f"need --ds-min <= --ds <= --ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
+    if phi_min >= phi_max:
+        raise UserError("--phi-min must be below --phi-max")
+    if not 0 <= min_alignment < 1:
+        raise UserError(f"--min-alignment must be in [0, 1), got {min_alignment:g}")
+    if max_defect is not None:
+        max_error = max_defect
+    return dict(phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max, max_steps=max_steps, ds=ds,
+                ds_max=ds_max, ds_min=ds_min, min_alignment=min_alignment, max_error=max_error,
+                fold_error=fold_error, forced=tuple(forced), adapt=not uniform, N_max=N_max)
+
+
 def _rod(w, EI, GJ, EA, L):
     from .rod import RodParameters
-    if w < 0:
-        raise UserError(f"--w must be non-negative, got {w:g}")
     return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L)
 
 
-def _check_gamma(gamma, rod):
-    """Below the Euler load of the clamped rod (T = -4 pi^2 EI / L^2) the untwisted start is buckled."""
-    T = gamma * rod.w * rod.L
-    T_euler = -4 * math.pi**2 * rod.EI / rod.L**2
-    if T <= T_euler:
-        lim = T_euler / (rod.w * rod.L) if rod.w > 0 else float("-inf")
-        raise UserError(f"--gamma {gamma:g} is at or below the Euler buckling load of the clamped rod "
-                        f"(Gamma = {lim:.6g}): the untwisted start is not unique")
+def _load(path, branch=None):
+    from .branchfile import BranchFileError, load_branch
+    try:
+        return load_branch(path, branch)
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
 
 
-def _out_path(path):
+def _load_any(path):
+    from .branchfile import BranchFileError, load_diagram
+    try:
+        return load_diagram(path)
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _point_spec(spec, what="--start"):
+    from .branchfile import BranchFileError, split_spec
+    try:
+        path, branch, label = split_spec(spec, what)
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
+    data = _load(path, branch)
+    try:
+        pt = data.point(label)
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
+    return data, pt, label
+
+
+def _explicit(*names):
+    ctx = click.get_current_context()
+    return [n for n in names if ctx.get_parameter_source(n) not in (click.core.ParameterSource.DEFAULT, None)]
+
+
+def _check_out(out, inputs=(), overwrite=False, what="--out"):
+    from .branchfile import BranchFileError, check_output
+    try:
+        return check_output(out, inputs, overwrite, what)
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _image_out(path, inputs=()):
+    """A PNG/GIF/MP4 output path: its suffix, its directory, not an input."""
+    if not path or not path.strip():
+        raise UserError("-o needs a file name")
+    from .branchfile import same_file
+    for src in inputs:
+        if same_file(path, src):
+            raise UserError(f"-o {path} is the input file {src}: write to another file")
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         raise UserError(f"cannot write {path}: directory {d} does not exist")
     if os.path.isdir(path):
         raise UserError(f"cannot write {path}: it is a directory")
+    if not os.access(d, os.W_OK | os.X_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+        raise UserError(f"cannot write {path}: permission denied")
     return path
 
 
-def _load(path):
-    from .branchfile import BranchFileError, load_branch
-    try:
-        return load_branch(path)
-    except BranchFileError as exc:
-        raise UserError(str(exc)) from None
+# --------------------------------------------------------------------------
+# Interrupts: Ctrl-C and SIGTERM are taken between points
+# --------------------------------------------------------------------------
+class _Interrupts:
+    """While active, SIGINT and SIGTERM set a flag that the point callback turns into
+    ``KeyboardInterrupt`` (after the point is stored); a second one interrupts at once."""
+
+    def __init__(self):
+        self.signum = None
+
+    def __enter__(self):
+        self.previous = {s: signal.signal(s, self._handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def _handler(self, signum, frame):
+        if self.signum is not None:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+    def check(self):
+        if self.signum is not None:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        for s, h in self.previous.items():
+            signal.signal(s, h)
+        return False
+
+    @property
+    def exit_code(self) -> int:
+        return 143 if self.signum == signal.SIGTERM else 130
 
 
-def _split_label(spec, what="--start"):
-    if ":" not in spec:
-        raise UserError(f"{what} expects FILE.h5:POINT (a point index, F<j> or BP<j>), got {spec!r}")
-    path, label = spec.rsplit(":", 1)
-    return path, label
+class _Progress:
+    """One status line on a terminal (rewritten in place), a line every few seconds otherwise."""
+
+    def __init__(self, quiet: bool, interrupts: _Interrupts | None = None):
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.last = 0.0
+        self.n = 0
+        self.t0 = time.perf_counter()
+        self.folds = 0
+        self.interrupts = interrupts
+
+    def __call__(self, pt):
+        self.n += 1
+        if str(pt.kind) == "fold":
+            self.folds += 1
+        if not self.quiet:
+            now = time.perf_counter()
+            d = pt.data
+            msg = (f"point {self.n:5d}  Phi {d['phi_L']:9.5f}  stretch {d['stretch']:10.6f}  "
+                   f"waves {d['helical_waves']}  min d3.K3 {d['min_alignment']:.3f}  folds {self.folds}  "
+                   f"{now - self.t0:6.1f} s")
+            if str(pt.kind) not in ("regular", "start"):
+                click.echo(("\r" if self.tty else "") + f"  {str(pt.kind)[:60]:<14s} at Phi = {d['phi_L']:.10f}, "
+                           f"stretch = {d['stretch']:.10f}" + " " * 20, err=True)
+            if self.tty:
+                click.echo("\r" + msg, nl=False, err=True)
+            elif now - self.last > 5.0:
+                click.echo(msg, err=True)
+                self.last = now
+        if self.interrupts is not None:
+            self.interrupts.check()
+
+    def done(self):
+        if self.tty and not self.quiet:
+            click.echo("", err=True)
 
 
 # --------------------------------------------------------------------------
 # Commands
 # --------------------------------------------------------------------------
 @click.group(context_settings=dict(help_option_names=["-h", "--help"]))
-@click.version_option(package_name="rodcont")
-def main_group():
+@click.version_option(package_name="rodcont", message="%(prog)s %(version)s")
+@click.option("--debug", is_flag=True, help="show tracebacks of unexpected failures")
+@click.pass_context
+def main_group(ctx, debug):
     """Equilibrium branches, folds and bifurcations of the twisted heavy rod (Eulerian Cosserat rod)."""
+    ctx.ensure_object(dict)
+    ctx.obj["debug"] = debug
 
 
 @main_group.command()
-@click.option("--gamma", type=float, required=True, callback=_finite("--gamma"), help="tension ratio T / (w L)")
-@click.option("--phi", "phi", type=float, required=True, callback=_finite("--phi"), help="end rotation Phi [rad]")
-@click.option("--load-step", type=float, default=0.5, show_default=True, callback=_positive("--load-step"),
+@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@click.option("--phi", "phi", type=float, required=True, callback=_number("--phi"), help="end rotation Phi [rad]")
+@click.option("--load-step", type=float, default=0.5, show_default=True, callback=_number("--load-step", positive=True),
               help="Phi increment of the natural continuation from 0")
 @rod_options
 def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
@@ -127,12 +287,11 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     Prints `name value` pairs: stretch, torque, l0, helical_waves,
     min_alignment (min d3.K3), Newton iterations and residual norm.
     """
-    from .branch import ConvergenceError, solve_equilibrium
+    from .drivers.solve import ConvergenceError, solve_equilibrium
     rod = _rod(w, EI, GJ, EA, L)
-    _check_gamma(gamma, rod)
     try:
         eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step)
-    except ConvergenceError as exc:
+    except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     o = eq.outputs
     for name in ("phi_L", "stretch", "torque", "l0"):
@@ -144,163 +303,149 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     click.echo(f"residual_norm {eq.newton.residual_norm:.6g}")
 
 
-class _Progress:
-    """One status line on a terminal (rewritten in place), a line every few seconds otherwise."""
-
-    def __init__(self, quiet: bool):
-        self.quiet = quiet
-        self.tty = sys.stderr.isatty()
-        self.last = 0.0
-        self.n = 0
-        self.t0 = time.perf_counter()
-        self.folds = 0
-
-    def __call__(self, pt):
-        self.n += 1
-        if pt.kind == "fold":
-            self.folds += 1
-        if self.quiet:
-            return
-        now = time.perf_counter()
-        d = pt.data
-        msg = (f"point {self.n:5d}  Phi {d['phi_L']:9.5f}  stretch {d['stretch']:10.6f}  "
-               f"waves {d['helical_waves']}  min d3.K3 {d['min_alignment']:.3f}  folds {self.folds}  "
-               f"{now - self.t0:6.1f} s")
-        if pt.kind not in ("regular", "start"):
-            click.echo(("\r" if self.tty else "") + f"  {pt.kind:<14s} at Phi = {d['phi_L']:.10f}, "
-                       f"stretch = {d['stretch']:.10f}" + " " * 20, err=True)
-        if self.tty:
-            click.echo("\r" + msg, nl=False, err=True)
-        elif now - self.last > 5.0:
-            click.echo(msg, err=True)
-            self.last = now
-
-    def done(self):
-        if self.tty and not self.quiet:
-            click.echo("", err=True)
-
-
 @main_group.command()
-@click.option("--gamma", type=float, default=None, callback=_finite("--gamma"),
+@click.option("--gamma", type=float, default=None, callback=_number("--gamma"),
               help="tension ratio T / (w L) (required unless --start)")
-@click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_finite("--phi-max"))
-@click.option("--phi-min", type=float, default=-1.0, show_default=True, callback=_finite("--phi-min"))
-@click.option("--stretch-max", type=float, default=None, callback=_finite("--stretch-max"),
-              help="stop when the stretch reaches this value")
-@click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True)
-@click.option("--ds", type=float, default=0.1, show_default=True, callback=_positive("--ds"),
-              help="first pseudo-arclength step")
-@click.option("--ds-max", type=float, default=0.5, show_default=True, callback=_positive("--ds-max"))
-@click.option("--ds-min", type=float, default=1e-6, show_default=True, callback=_positive("--ds-min"),
-              help="the trace stops when the step must shrink below this")
-@click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True,
-              help="validity guard: stop where min d3.K3 falls to this")
-@click.option("--max-defect", type=float, default=1e-2, show_default=True, callback=_positive("--max-defect"),
-              help="accuracy guard: stop where the relative residual between collocation points reaches this")
-@click.option("--forced", type=float, multiple=True, help="a Phi value that gets a point of its own (repeatable)")
-@click.option("--start", default=None, help="restart from FILE.h5:POINT (index from 0, F<j> or BP<j> from 1)")
+@trace_options
+@click.option("--start", default=None, help="restart from FILE.h5:POINT (or FILE.h5:BRANCH:POINT of a diagram); "
+                                            "POINT: index from 0, F<j> or BP<j> from 1")
 @click.option("--switch", is_flag=True, help="with --start at a branch point: follow the other branch")
-@click.option("--adapt", is_flag=True,
-              help="move the N breakpoints to equidistribute the defect when it reaches max-defect/10")
+@click.option("--from-straight", type=float, default=None, callback=_number("--from-straight"),
+              help="start near the straight twisted state at this Phi (weight homotopy)")
+@click.option("--param", type=click.Choice(["phi_L", "w", "T", "gamma", "EI", "GJ", "EA"]), default="phi_L",
+              show_default=True, help="the continued parameter (others than phi_L at fixed Phi, with --range)")
+@click.option("--range", "prange", type=float, nargs=2, default=None, callback=_number("--range"),
+              help="A B: the interval of --param (when it is not phi_L)")
+@click.option("--direction", type=click.Choice(["up", "down"]), default="up", show_default=True,
+              help="which way the parameter goes first")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
+@click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
-def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_defect, forced,
-          start, switch, adapt, out, quiet, N, k, w, EI, GJ, EA, L):
-    """Trace a branch in Phi through its folds and write it to a branch file.
+def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error, max_defect,
+          fold_error, forced, uniform, N_max, start, switch, from_straight, param, prange, direction, out,
+          overwrite, quiet, N, k, w, EI, GJ, EA, L):
+    """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
-    bracketed. With --start the rod, Gamma and mesh come from the file.
+    bracketed; the mesh adapts to the shape unless --uniform. With --start the
+    rod, the tension and the mesh come from the file.
     """
-    from .branch import trace as run_trace
-    ctx = click.get_current_context()
-    if ds > ds_max and ctx.get_parameter_source("ds") == click.core.ParameterSource.DEFAULT:
-        ds = ds_max  # only --ds-max was given: start at it
-    if not ds_min <= ds <= ds_max:
-        raise UserError(f"need --ds-min <= --ds <= --ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
-    if phi_min >= phi_max:
-        raise UserError("--phi-min must be below --phi-max")
-    start_data = None
-    breakpoints = None
+    import numpy as np
+    from .drivers.trace import trace as run_trace
+    kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+                       max_defect, fold_error, forced, uniform, N_max)
+    kw["direction"] = 1 if direction == "up" else -1
+    if param != "phi_L":
+        if prange is None:
+            raise UserError(f"--param {param} needs --range A B")
+        kw["p_range"] = tuple(prange)
+    elif prange is not None:
+        raise UserError("--range is for --param other than phi_L (use --phi-min/--phi-max)")
+    extra = dict(param=param)
+    T = None
     if start is not None:
-        path, label = _split_label(start)
-        data = _load(path)
-        if data.attrs.get("param", "phi_L") != "phi_L":
-            raise UserError(f"{path} is a fold curve in {data.attrs['param']}, not a branch in phi_L: "
-                            f"it cannot start a trace")
-        from .branchfile import BranchFileError
-        try:
-            pt = data.point(label)
-        except BranchFileError as exc:
-            raise UserError(str(exc)) from None
-        rod = data.rod
-        gamma = data.gamma
-        N, k = int(data.attrs["N"]), int(data.attrs["k"])
-        start_data = (pt["x"], float(pt["phi_L"]), pt["direction"])
-        breakpoints = pt["breakpoints"]
+        if from_straight is not None:
+            raise UserError("give --start or --from-straight, not both")
+        data, pt, label = _point_spec(start)
+        if data.param != "phi_L" and data.attrs.get("kind") == "fold_curve":
+            raise UserError(f"{data.path} is a fold curve in {data.param}, not a branch: it cannot start a trace")
+        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L")
+        if changed:
+            names = ", ".join("--" + n for n in changed)
+            raise UserError(f"{names} differ from the start file's; a restart keeps its rod and tension: to change "
+                            f"them, trace in that parameter from the point (--start {start} --param "
+                            f"{'gamma' if 'gamma' in changed else changed[0]} --range A B)")
         if switch and pt["kind"] != "branch_point":
             raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
-        if os.path.abspath(path) == os.path.abspath(out):
-            raise UserError("--out must differ from the --start file")
+        _check_out(out, [data.path], overwrite)
+        rod, T = data.rod, data.tension
+        k = int(data.attrs["k"])
+        b = pt["breakpoints"]
+        x0 = pt["x"]
+        value = float(pt[data.param]) if data.param != "phi_L" else float(pt["phi_L"])
+        if param == "phi_L" and data.param != "phi_L":
+            extra["param"] = "phi_L"
+            value = float(pt["phi_L"])
+            rod = _rod_at_point(data, pt)
+            T = _tension_at_point(data, pt)
+        if param != "phi_L":
+            value = _param_value(param, rod, T)
+            extra["phi_L"] = float(pt["phi_L"])
+        direction0 = pt["direction"] if param == data.param else None
+        if direction0 is not None and direction == "down":
+            direction0 = (-np.asarray(direction0[0]), -direction0[1])
+        if "N" in _explicit("N") and N != b.size - 1:
+            from .system import RodSystem
+            src = RodSystem(rod, T=T, N=b.size - 1, k=k, breakpoints=b)
+            dst = RodSystem(rod, T=T, N=N, k=k)
+            x0 = dst.disc.transfer(x0, src.disc)
+            if direction0 is not None:
+                direction0 = (dst.disc.transfer(np.asarray(direction0[0]), src.disc), direction0[1])
+            b = dst.disc.breakpoints
+        else:
+            N = b.size - 1
+        extra.update(start=(x0, value, direction0), breakpoints=b, switch=switch)
     else:
         if switch:
             raise UserError("--switch needs --start FILE.h5:BP<j>")
+        rod = _rod(w, EI, GJ, EA, L)
         if gamma is None:
             raise UserError("--gamma is required (or --start FILE.h5:POINT)")
-        rod = _rod(w, EI, GJ, EA, L)
-        _check_gamma(gamma, rod)
-    _out_path(out)
-    progress = _Progress(quiet)
-    t0 = time.perf_counter()
-    interrupted = False
-    # Ctrl-C is taken between points (after the point is on disk), so it never lands in
-    # the middle of a write; a second Ctrl-C interrupts at once.
-    pending = []
+        if from_straight is not None:
+            extra["from_straight"] = from_straight
+            if param != "phi_L":
+                extra["phi_L"] = from_straight
+        elif param != "phi_L":
+            raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
+        _check_out(out, [], overwrite)
+    _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 
-    def on_sigint(signum, frame):
-        if pending:
-            raise KeyboardInterrupt
-        pending.append(signum)
 
-    def callback(pt):
-        progress(pt)
-        if pending:
-            raise KeyboardInterrupt
+def _param_value(param, rod, T):
+    return {"T": T, "gamma": rod.gamma(T), "w": rod.w, "EI": rod.EI, "GJ": rod.GJ, "EA": rod.EA}[param]
 
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        run_trace(gamma, rod, N=N, k=k, phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max,
-                  min_alignment=min_alignment, max_defect=max_defect, max_steps=max_steps, ds=ds,
-                  ds_max=ds_max, ds_min=ds_min, forced=forced, start=start_data, switch=switch, out=out,
-                  callback=callback, adapt=adapt, breakpoints=breakpoints)
-    except KeyboardInterrupt:
-        interrupted = True
-    except ValueError as exc:
-        _remove_if_empty(out)
-        raise UserError(str(exc)) from None
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    progress.done()
+
+def _rod_at_point(data, pt):
+    from .rod import RodParameters
+    a = dict(EI=data.rod.EI, GJ=data.rod.GJ, EA=data.rod.EA, w=data.rod.w, L=data.rod.L,
+             weight_direction=data.rod.weight_direction)
+    if data.param in ("EI", "GJ", "EA", "w"):
+        a[data.param] = float(pt[data.param])
+    return RodParameters(**a)
+
+
+def _tension_at_point(data, pt):
+    if data.param == "T":
+        return float(pt["T"])
+    if data.param == "gamma":
+        return float(pt["gamma"]) * data.rod.w * data.rod.L
+    return data.tension
+
+
+def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet):
+    with _Interrupts() as intr:
+        progress = _Progress(quiet, intr)
+        t0 = time.perf_counter()
+        interrupted = False
+        try:
+            br = run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=progress, **extra, **kw)
+        except KeyboardInterrupt:
+            interrupted = True
+        except (ValueError, TypeError) as exc:
+            raise UserError(str(exc)) from None
+        finally:
+            progress.done()
     elapsed = time.perf_counter() - t0
+    if not os.path.exists(out):
+        raise UserError("no branch traced: interrupted before the first point" if interrupted else
+                        "no branch traced")
     data = _load(out)
-    if len(data) == 0:
-        reason = data.attrs.get("stop_reason", "")
-        os.remove(out)
-        raise UserError(f"no branch traced: {reason}")
     _summary(data, elapsed)
     if interrupted:
         click.echo(f"interrupted: {out} holds the {len(data)} completed point(s); "
                    f"restart with --start {out}:-1", err=True)
-        sys.exit(130)
-
-
-def _remove_if_empty(path):
-    try:
-        from .branchfile import load_branch
-        if os.path.exists(path) and len(load_branch(path)) == 0:
-            os.remove(path)
-    except Exception:
-        pass
+        sys.exit(intr.exit_code)
 
 
 def _summary(data, elapsed):
@@ -322,16 +467,122 @@ def _fold_table(data):
         click.echo("no folds")
         return
     click.echo(f"{'fold':>4} {'index':>6} {'phi_L':>18} {'stretch':>18} {'torque':>16} {'l0':>16} waves before->after")
+    located = f.get("located", [1] * len(f["index"]))
     for j in range(len(f["index"])):
+        mark = "  (+1 wave)" if f["waves_after"][j] > f["waves_before"][j] else ""
+        mark += "" if located[j] else "  (bracketed, not located)"
         click.echo(f"F{j + 1:<3d} {f['index'][j]:6d} {f['phi_L'][j]:18.12f} {f['stretch'][j]:18.12f} "
-                   f"{f['torque'][j]:16.10f} {f['l0'][j]:16.10f} {f['waves_before'][j]:d} -> {f['waves_after'][j]:d}")
+                   f"{f['torque'][j]:16.10f} {f['l0'][j]:16.10f} {f['waves_before'][j]:d} -> {f['waves_after'][j]:d}"
+                   f"{mark}")
+
+
+@main_group.command()
+@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_number("--phi-max"))
+@click.option("--phi-min", type=float, default=0.0, show_default=True, callback=_number("--phi-min"))
+@rod_options
+def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
+    """Critical twists: where the straight weightless rod under the same tension buckles.
+
+    From the tangent operator along the exact straight state (each double
+    root, a circle of helical modes, listed once): Phi, torque m = GJ alpha
+    Phi / L and m L / (alpha EI).
+    """
+    from .drivers.diagram import critical_twists
+    rod = _rod(w, EI, GJ, EA, L)
+    if rod.w == 0:
+        raise UserError("--gamma needs a weight (--w > 0): T = gamma w L")
+    T = rod.tension(gamma)
+    try:
+        crit = critical_twists(rod, T, phi_max=phi_max, phi_min=phi_min, k=k)
+    except (ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
+    alpha = 1 + T / EA
+    click.echo(f"# straight weightless rod, T = {T:.10g} (Gamma = {gamma:g}), alpha = 1 + T/EA = {alpha:.10g}")
+    click.echo(f"{'n':>3} {'phi_L':>18} {'torque':>18} {'m L/(alpha EI)':>16}")
+    for n, phi in enumerate(crit, 1):
+        m = GJ * alpha * phi / L
+        click.echo(f"{n:3d} {phi:18.12f} {m:18.12f} {m * L / (alpha * EI):16.10f}")
+    if not crit:
+        click.echo(f"none below phi_max = {phi_max:g}")
+
+
+@main_group.command()
+@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@trace_options
+@click.option("--deflate", "deflate_at", type=float, multiple=True, callback=_number("--deflate"),
+              help="a Phi where deflated Newton looks for solutions the seeds missed (repeatable)")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
+@click.option("--overwrite", is_flag=True, help="replace --out if it exists")
+@click.option("--quiet", is_flag=True, help="no progress display")
+@rod_options
+def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+            max_defect, fold_error, forced, uniform, N_max, deflate_at, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
+    """The whole response diagram at Gamma: every branch in [phi-min, phi-max], every fold.
+
+    The primary branch from Phi = 0, one seed per interval between
+    consecutive critical twists (traced both ways), --deflate for more;
+    a branch reached twice is kept once. Prints one line per branch and the
+    fold table with the waves on each side (+1 wave marks a fold that adds one).
+    """
+    from .drivers.diagram import diagram as run_diagram
+    kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+                       max_defect, fold_error, forced, uniform, N_max)
+    rod = _rod(w, EI, GJ, EA, L)
+    _check_out(out, [], overwrite)
+    with _Interrupts() as intr:
+        progress = _Progress(True, intr)
+        t0 = time.perf_counter()
+        interrupted = False
+        try:
+            dg = run_diagram(gamma, rod, N=N, k=k, out=out, overwrite=overwrite, deflate_at=deflate_at,
+                             callback=progress, progress=None if quiet else (lambda m: click.echo(m, err=True)),
+                             **kw)
+        except KeyboardInterrupt:
+            interrupted = True
+        except (ValueError, TypeError) as exc:
+            raise UserError(str(exc)) from None
+    if interrupted:
+        if os.path.exists(out):
+            click.echo(f"interrupted: {out} holds the branches completed so far", err=True)
+        sys.exit(intr.exit_code)
+    elapsed = time.perf_counter() - t0
+    click.echo(f"critical twists  {', '.join(f'{c:.8f}' for c in dg.critical)}")
+    click.echo(f"branches         {len(dg.branches)}")
+    for j, db in enumerate(dg.branches):
+        click.echo(f"  {j}: {len(db.branch):4d} points {len(db.branch.folds):2d} folds {db.time:6.2f} s  "
+                   f"{db.origin}")
+        click.echo(f"       ends: {db.ends[0]}")
+        click.echo(f"             {db.ends[1]}")
+    for origin, why in dg.skipped:
+        click.echo(f"  not traced: {origin}: {why}")
+    click.echo(f"time             {elapsed:.2f} s")
+    _diagram_folds(dg.folds)
+
+
+def _diagram_folds(folds):
+    if not folds:
+        click.echo("no folds")
+        return
+    click.echo(f"{'branch':>6} {'phi_L':>18} {'stretch':>16} {'torque':>14} {'l0':>14} waves")
+    for f in folds:
+        mark = "  <- +1 wave" if f["waves_after"] > f["waves_before"] else ""
+        click.echo(f"{f['branch']:6d} {f['phi_L']:18.12f} {f['stretch']:16.10f} {f['torque']:14.8f} "
+                   f"{f['l0']:14.10f} {f['waves_before']} -> {f['waves_after']}{mark}")
 
 
 @main_group.command()
 @click.argument("file")
 def folds(file):
-    """Print the fold table of a branch file."""
-    data = _load(file)
+    """Print the fold table of a branch or diagram file."""
+    d = _load_any(file)
+    if d.attrs.get("kind") == "diagram":
+        click.echo(f"# {file}: diagram at Gamma = {d.attrs.get('gamma'):g}, {len(d.branches)} branches")
+        folds = [dict(branch=int(d.folds["branch"][i]), **{n: d.folds[n][i] for n in d.folds if n != "branch"})
+                 for i in range(len(d.folds.get("phi_L", [])))]
+        _diagram_folds(folds)
+        return
+    data = d.branches[0]
     click.echo(f"# {file}: Gamma = {data.gamma:g}, {len(data)} points, stop: {data.attrs.get('stop_reason')}")
     _fold_table(data)
 
@@ -341,12 +592,15 @@ def folds(file):
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PNG to write")
 @click.option("--title", default=None)
 def plot(files, output, title):
-    """Response diagram (Phi against stretch, one curve per file, folds marked)."""
-    from .plots import response_diagram
-    data = [_load(f) for f in files]
-    if any(len(d) == 0 for d in data):
+    """Response diagram (Phi against stretch; diagrams with every branch, folds marked and labelled)."""
+    _image_out(output, files)
+    if not output.lower().endswith(".png"):
+        raise UserError(f"-o {output}: plots are written as PNG (name it .png)")
+    data = [_load_any(f) for f in files]
+    if any(sum(len(b) for b in d.branches) == 0 for d in data):
         raise UserError("a branch file with no points cannot be plotted")
-    response_diagram(data, _out_path(output), title)
+    from .plots import response_diagram
+    response_diagram(data, output, title)
     click.echo(f"wrote {output}")
 
 
@@ -354,13 +608,17 @@ def plot(files, output, title):
 @click.argument("file")
 @click.option("--point", "points", multiple=True, default=("-1",), show_default=True,
               help="point index (from 0, negative from the end), F<j> or BP<j>; repeatable")
+@click.option("--branch", default=None, help="the branch of a diagram file")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PNG to write")
-def shape(file, points, output):
+def shape(file, points, branch, output):
     """3D centreline of stored points of a branch file."""
+    import numpy as np
     from .branchfile import BranchFileError
-    from .plots import shape_figure
     from .rod import EulerianRod
-    data = _load(file)
+    _image_out(output, [file])
+    if not output.lower().endswith(".png"):
+        raise UserError(f"-o {output}: shapes are written as PNG (name it .png)")
+    data = _load(file, branch)
     model = EulerianRod(data.rod)
     curves = []
     S = np.linspace(0, data.rod.L, 400)
@@ -370,11 +628,10 @@ def shape(file, points, output):
         except BranchFileError as exc:
             raise UserError(str(exc)) from None
         disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
-        if pt["x"].size != disc.size:
-            raise UserError(f"{file}: stored coefficients do not fit the stored mesh")
         r = model.centreline(disc, pt["x"], S)
         curves.append((r, f"#{pt['index']}: Φ = {pt['phi_L']:.4f}, stretch = {pt['stretch']:.4f}"))
-    shape_figure(curves, _out_path(output), f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
+    from .plots import shape_figure
+    shape_figure(curves, output, f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
     click.echo(f"wrote {output}")
 
 
@@ -382,32 +639,45 @@ def shape(file, points, output):
 @click.argument("spec")
 @click.option("--param", type=click.Choice(["gamma", "T", "w", "EI", "GJ", "EA"]), default="gamma", show_default=True,
               help="second parameter (gamma keeps w fixed; the others keep T fixed)")
-@click.option("--range", "prange", type=float, nargs=2, required=True, help="A B: the interval of the parameter")
-@click.option("--ds", type=float, default=0.05, show_default=True, callback=_positive("--ds"))
-@click.option("--ds-max", type=float, default=0.5, show_default=True, callback=_positive("--ds-max"))
+@click.option("--range", "prange", type=float, nargs=2, required=True, callback=_number("--range"),
+              help="A B: the interval of the parameter")
+@click.option("--ds", type=float, default=0.05, show_default=True, callback=_number("--ds", positive=True))
+@click.option("--ds-max", type=float, default=0.5, show_default=True, callback=_number("--ds-max", positive=True))
 @click.option("--max-steps", type=click.IntRange(1, 10**6), default=500, show_default=True)
-@click.option("--forced", type=float, multiple=True, help="a parameter value that gets a point of its own")
+@click.option("--max-error", type=float, default=1e-6, show_default=True, callback=_number("--max-error", positive=True),
+              help="accuracy guard on the estimated error of each fold")
+@click.option("--forced", type=float, multiple=True, callback=_number("--forced"),
+              help="a parameter value that gets a point of its own")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="fold-curve file to write (HDF5)")
+@click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True)
-def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, forced, out, quiet):
-    """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I is the I-th fold, counted from 0."""
-    from .branch import fold_curve
-    path, label = _split_label(spec, "fold-curve")
+def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced, out, overwrite, quiet):
+    """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I (or FILE.h5:BRANCH:I) is the I-th fold, from 0."""
+    from .branchfile import BranchFileError, split_spec
+    from .drivers.foldcurve import fold_curve
+    try:
+        path, branch, label = split_spec(spec, "fold-curve")
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
     try:
         fold = int(label)
     except ValueError:
         raise UserError(f"fold-curve expects FILE.h5:I with I the fold number from 0, got {label!r}") from None
-    if not all(math.isfinite(v) for v in prange):
-        raise UserError("--range needs two finite numbers")
-    data = _load(path)
-    _out_path(out)
-    progress = _Progress(quiet)
-    t0 = time.perf_counter()
-    try:
-        res = fold_curve(data, fold, param, prange[0], prange[1], out=out, ds=ds, ds_max=ds_max,
-                         max_steps=max_steps, forced=forced, callback=progress)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
+    data = _load(path, branch)
+    _check_out(out, [path], overwrite)
+    with _Interrupts() as intr:
+        progress = _Progress(quiet, intr)
+        t0 = time.perf_counter()
+        try:
+            res = fold_curve(data, fold, param, prange[0], prange[1], out=out, ds=ds, ds_max=ds_max,
+                             max_steps=max_steps, forced=forced, max_error=max_error, overwrite=overwrite,
+                             callback=progress)
+        except KeyboardInterrupt:
+            progress.done()
+            click.echo(f"interrupted: {out} holds the points computed so far", err=True)
+            sys.exit(intr.exit_code)
+        except (ValueError, TypeError) as exc:
+            raise UserError(str(exc)) from None
     progress.done()
     pts = res["points"]
     if len(pts) <= 1:
@@ -444,68 +714,105 @@ class _GreedyFloats(click.Option):
 
 
 @main_group.command()
-@click.option("--gamma", "gammas", cls=_GreedyFloats, type=float, required=True, help="tension ratios, e.g. 0 0.5 1 2 5")
-@click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_finite("--phi-max"))
-@click.option("--phi-min", type=float, default=-1.0, show_default=True, callback=_finite("--phi-min"))
-@click.option("--max-steps", type=click.IntRange(1, 10**7), default=2000, show_default=True)
-@click.option("--min-alignment", type=click.FloatRange(0, 1, max_open=True), default=0.05, show_default=True)
-@click.option("--max-defect", type=float, default=1e-2, show_default=True, callback=_positive("--max-defect"))
-@click.option("--adapt", is_flag=True, help="move the breakpoints with the shape (see trace --adapt)")
+@click.option("--gamma", "gammas", cls=_GreedyFloats, type=float, required=True, callback=_number("--gamma"),
+              help="tension ratios, e.g. 0 0.5 1 2 5")
+@trace_options
+@click.option("--diagram", "whole", is_flag=True, help="the whole diagram per Gamma, not only the primary branch")
 @click.option("--jobs", type=click.IntRange(1, 1024), default=None, help="parallel processes [default: all cores]")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="directory for the files")
+@click.option("--overwrite", is_flag=True, help="replace files that exist in the directory")
 @click.option("--quiet", is_flag=True)
 @rod_options
-def sweep(gammas, phi_max, phi_min, max_steps, min_alignment, max_defect, adapt, jobs, out_dir, quiet,
+def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+          max_defect, fold_error, forced, uniform, N_max, whole, jobs, out_dir, overwrite, quiet,
           N, k, w, EI, GJ, EA, L):
-    """A family of branches, one per Gamma, traced in parallel, and their combined diagram."""
-    from .family import sweep as run_sweep
+    """A family, one branch (or --diagram) per Gamma, traced in parallel, and their combined response diagram."""
+    from .drivers.solve import check_tension
+    from .drivers.sweep import gamma_name, sweep as run_sweep
+    kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
+                       max_defect, fold_error, forced, uniform, N_max)
     rod = _rod(w, EI, GJ, EA, L)
     for g in gammas:
-        if not math.isfinite(g):
-            raise UserError(f"--gamma values must be finite numbers, got {g}")
-        _check_gamma(g, rod)
-    if len(set(gammas)) != len(gammas):
+        try:
+            check_tension(rod, rod.tension(g), f"--gamma {g:g}:")
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    if len({gamma_name(g) for g in gammas}) != len(gammas):
         raise UserError("--gamma values must be distinct")
+    if not out_dir.strip():
+        raise UserError("--out needs a directory name")
     parent = os.path.dirname(os.path.abspath(out_dir))
     if not os.path.isdir(parent):
         raise UserError(f"cannot create {out_dir}: directory {parent} does not exist")
-    os.makedirs(out_dir, exist_ok=True)
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise UserError(f"--out {out_dir} exists and is not a directory")
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create {out_dir}: {exc.strerror}") from None
     t0 = time.perf_counter()
-    res = run_sweep(list(gammas), out_dir, rod=rod, N=N, k=k, jobs=jobs, progress=not quiet,
-                    phi_max=phi_max, phi_min=phi_min, max_steps=max_steps, min_alignment=min_alignment,
-                    max_defect=max_defect, adapt=adapt)
-    click.echo(f"{'gamma':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
+    try:
+        res = run_sweep(list(gammas), out_dir, rod=rod, N=N, k=k, jobs=jobs, progress=not quiet, diagram=whole,
+                        overwrite=overwrite, **kw)
+    except (ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
+    click.echo(f"{'gamma':>8} {'branches':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
     for r in res["branches"]:
         ff = f"{r['first_fold']:18.10f}" if r["first_fold"] is not None else f"{'-':>18}"
-        click.echo(f"{r['gamma']:8g} {r['points']:7d} {r['folds']:6d} {ff}  {r['stop_reason']}")
+        click.echo(f"{r['gamma']:8g} {r['branches']:8d} {r['points']:7d} {r['folds']:6d} {ff}  {r['stop_reason']}")
     click.echo(f"diagram      {res['diagram']}")
     click.echo(f"time         {time.perf_counter() - t0:.2f} s ({res['jobs']} processes)")
+    if any(r["error"] for r in res["branches"]):
+        sys.exit(1)
 
 
+# --------------------------------------------------------------------------
+# Entry point
+# --------------------------------------------------------------------------
 def main(argv=None):
     """Entry point: click's parsing with one-line errors and exit status 2."""
+    import warnings
+    warnings.simplefilter("ignore", RuntimeWarning)
+    debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     try:
         rv = main_group.main(args=argv, prog_name="rodcont", standalone_mode=False)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except click.ClickException as exc:
         msg = exc.format_message() if not isinstance(exc, click.UsageError) else _usage_message(exc)
-        click.echo(f"rodcont: error: {msg}", err=True)
+        _err(f"rodcont: error: {' '.join(msg.split())}")
         sys.exit(EXIT_USAGE)
-    except click.exceptions.Abort:
-        click.echo("rodcont: aborted", err=True)
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        _err("rodcont: interrupted")
         sys.exit(130)
-    except KeyboardInterrupt:
-        click.echo("rodcont: interrupted", err=True)
-        sys.exit(130)
-    except (MemoryError, OSError) as exc:
-        click.echo(f"rodcont: error: {type(exc).__name__}: {exc}", err=True)
-        sys.exit(1)
-    except Exception as exc:  # a bug, not a user error: one line, and say so
-        click.echo(f"rodcont: error: unexpected failure ({type(exc).__name__}: {exc}); please report it "
-                   f"with the command line", err=True)
+    except BrokenPipeError:
+        # the reader went away (`rodcont ... | head`): not an error of ours
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        sys.exit(0)
+    except Exception as exc:  # a bug, or the machine (memory, disk): one line, and say which
+        if debug:
+            raise
+        from .branchfile import BranchFileError
+        if isinstance(exc, BranchFileError):
+            _err(f"rodcont: error: {exc}")
+            sys.exit(EXIT_USAGE)
+        if isinstance(exc, (MemoryError, OSError)):
+            _err(f"rodcont: error: {type(exc).__name__}: {' '.join(str(exc).split())}")
+            sys.exit(1)
+        _err(f"rodcont: error: unexpected failure ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+             f"please report it with the command line (--debug shows the traceback)")
         sys.exit(1)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _err(msg: str) -> None:
+    try:
+        click.echo(msg, err=True)
+    except OSError:
+        pass
 
 
 def _usage_message(exc: click.UsageError) -> str:

@@ -6,49 +6,105 @@ Protocol. A problem is any object with
 * ``tangent(x, p) -> (J, F_p)``: the Jacobian ``dF/dx`` (sparse or dense
   ``n x n``) and ``dF/dp`` (``n``-vector);
 
-optionally ``linearise(x, p) -> (F, J, F_p)`` doing both at once. The
-tracker follows the curve ``(x(s), p(s))`` with the arclength of the
-weighted inner product (BifurcationKit's normalisation, so a step means the
-same on any mesh)::
+optionally ``linearise(x, p) -> (F, J, F_p)`` doing both at once, and
+``accept(x, p)``, told of every accepted point. The tracker follows the curve
+``(x(s), p(s))`` with the arclength of the weighted inner product
+(BifurcationKit's normalisation, so a step means the same on any mesh)::
 
     <(x, p), (y, q)> = theta / n * x.y + (1 - theta) * p q
 
-Each step: tangent predictor ``(x, p) + ds (tx, tp)``, then Newton on the
-augmented (Keller) system
+Each step: tangent predictor ``(x, p) + ds (tx, tp)``, then a chord
+(simplified Newton) corrector on the augmented (Keller) system
 
     F(x, p) = 0,    <(tx, tp), (x - x0, p - p0)> = ds
 
-with the bordered Jacobian ``[[J, F_p], [theta/n tx, (1-theta) tp]]``
-factorised by a sparse LU. The tangent at a converged point solves the same
-bordered system with right-hand side ``(0, 1)`` and is oriented so that the
-branch never turns back (``<t_new, t_old> > 0``).
+with the bordered Jacobian ``[[J, F_p], [theta/n tx, (1-theta) tp]]`` of the
+*base* point, whose LU was made for the base tangent anyway (its last row is
+changed by a rank-one update, :class:`rodcont.linalg.RowUpdatedLU`). A chord
+iteration costs one residual and one solve; the one new factorisation per
+step is made at the converged point, where it gives the tangent (the
+solution of the bordered system with right-hand side ``(0, 1)``, oriented so
+that the branch never turns back), the sign of the determinant, and the
+corrector matrix of the next step. A corrector that contracts slowly falls
+back to full Newton.
 
-Special points, each *located*, not just bracketed, by a secant (Illinois)
-iteration on a test function along the arc from the last regular point:
+Steps are accepted only if they stay on the branch (Allgower & Georg): the
+corrector contracts at once, the corrected point lies within
+``max_distance * ds`` of the predictor, and the tangent turns by less than
+``max_angle`` per step (also between the base tangent and the secant). The
+next step grows or shrinks with the measured contraction, distance and
+angle, within ``[shrink, grow]``.
 
-* fold: ``tp`` changes sign; located to ``|tp| < fold_tol``;
-* branch point: the sign of ``det`` of the bordered Jacobian changes (read
-  off the sparse LU); located on ``det`` scaled by its value at the start;
-* forced points ``p = p_k`` and the parameter bounds;
-* user events ``g(point) = 0`` (e.g. a validity guard), optionally stopping.
+Special points are found by :class:`Detector` objects, each *located*, not
+just bracketed, by a secant (Illinois) iteration on its test function along
+the arc from the last regular point; a point whose location does not reach
+its tolerance is kept and marked ``located = False`` (bracketed):
+
+* fold: ``tp`` changes sign (to ``|tp| < fold_tol``); a pair of folds inside
+  one step is caught by the cubic Hermite model of ``p(s)`` on the step,
+  whose derivative then changes sign twice: the step is halved;
+* branch point: the sign of ``det`` of the bordered Jacobian changes;
+* parameter values (forced points, bounds);
+* user events ``g(point) = 0``: recorded, stopping the trace, or ending a
+  segment (the caller changes the discretisation and starts a new tracker).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from enum import Enum
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from .collocation import newton_solve, NewtonResult
+from .linalg import LU, NewtonResult, SingularMatrix, bordered, max_norm, newton_solve
 
 
 # --------------------------------------------------------------------------
-# Settings and points
+# Kinds, stop reasons, settings and points
 # --------------------------------------------------------------------------
+class Kind(str, Enum):
+    """What a point is. Stored in branch files as the value (events as ``event:<name>``)."""
+
+    START = "start"
+    REGULAR = "regular"
+    FOLD = "fold"
+    BRANCH_POINT = "branch_point"
+    FORCED = "forced"
+    BOUND = "bound"
+    EVENT = "event"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class Stop(Enum):
+    """Why a tracker ended."""
+
+    MAX_STEPS = "max_steps"
+    STEP_TOO_SMALL = "step_too_small"
+    BOUND = "bound"
+    EVENT = "event"            # a stopping event (a guard)
+    SEGMENT = "segment"        # an event that ends this segment: the caller goes on with another tracker
+    AT_START = "at_start"      # a stopping event or bound already violated at the first point
+    START_FAILED = "start_failed"
+
+
+@dataclass
+class StopReason:
+    status: Stop
+    message: str
+    event: str | None = None
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
 @dataclass
 class ContinuationSettings:
     """Every knob of the tracker, named once, with its default."""
@@ -63,20 +119,44 @@ class ContinuationSettings:
     theta: float = 0.5          # weight of x against p in the arclength
     newton_tol: float = 1e-10   # corrector: step below tol * (1 + |x|)
     newton_max_iter: int = 8
-    fast_iterations: int = 3    # grow the step when the corrector needs at most this
-    grow: float = 1.5
-    shrink: float = 0.5
-    max_angle: float = 0.35     # radians between successive tangents
-    max_correction: float = 0.5  # first corrector step / ds (a larger one means the predictor was poor)
-    max_contraction: float = 0.5  # second corrector step / first (Newton must contract at once)
+    chord_max_iter: int = 8     # chord iterations before falling back to Newton
+    grow: float = 2.0           # largest step growth per step
+    shrink: float = 0.5         # step reduction after a rejected step
+    max_angle: float = 0.3      # radians between successive tangents (and base tangent to secant)
+    max_distance: float = 0.3   # corrector distance from the predictor / ds
+    max_contraction: float = 0.5  # chord: each correction at most this fraction of the previous one
+    target_angle: float = 0.15  # step control aims at this turn per step
     detect_folds: bool = True
+    detect_fold_pairs: bool = True
     detect_branch_points: bool = True
     fold_tol: float = 1e-10     # |tp| at a located fold
     locate_tol: float = 1e-11   # |g| / |g(start)| for events and branch points
     locate_max_iter: int = 40
     forced: Sequence[float] = ()  # parameter values that get a point of their own
 
+    def __post_init__(self):
+        self.validate()
+
     def validate(self) -> None:
+        """Types, finiteness and ranges of every field; one ``ValueError``/``TypeError`` naming it."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in ("detect_folds", "detect_fold_pairs", "detect_branch_points"):
+                if not isinstance(v, (bool, np.bool_)):
+                    raise TypeError(f"{f.name} must be True or False, got {v!r}")
+            elif f.name in ("direction", "max_steps", "newton_max_iter", "chord_max_iter", "locate_max_iter"):
+                if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool)):
+                    raise TypeError(f"{f.name} must be an integer, got {v!r}")
+            elif f.name == "forced":
+                vals = list(v) if isinstance(v, (list, tuple, np.ndarray)) else None
+                if vals is None or not all(_is_number(u) and math.isfinite(u) for u in vals):
+                    raise ValueError(f"forced must be a sequence of finite numbers, got {v!r}")
+                self.forced = tuple(float(u) for u in vals)
+            else:
+                if not _is_number(v) or math.isnan(v):
+                    raise TypeError(f"{f.name} must be a number, got {v!r}")
+                if f.name not in ("p_min", "p_max") and not math.isfinite(v):
+                    raise ValueError(f"{f.name} must be finite, got {v!r}")
         checks = [
             (self.ds > 0, "ds must be positive"),
             (0 < self.ds_min <= self.ds <= self.ds_max, "need 0 < ds_min <= ds <= ds_max"),
@@ -84,7 +164,14 @@ class ContinuationSettings:
             (self.max_steps >= 1, "max_steps must be >= 1"),
             (self.p_min < self.p_max, "p_min must be below p_max"),
             (0 < self.theta < 1, "theta must be in (0, 1)"),
+            (self.newton_tol > 0 and self.fold_tol > 0 and self.locate_tol > 0, "tolerances must be positive"),
+            (self.newton_max_iter >= 1 and self.chord_max_iter >= 1 and self.locate_max_iter >= 1,
+             "iteration limits must be >= 1"),
             (self.grow >= 1 and 0 < self.shrink < 1, "need grow >= 1 and 0 < shrink < 1"),
+            (0 < self.max_angle < math.pi / 2 and 0 < self.target_angle <= self.max_angle,
+             "need 0 < target_angle <= max_angle < pi/2"),
+            (self.max_distance > 0, "max_distance must be positive"),
+            (0 < self.max_contraction < 1, "need 0 < max_contraction < 1"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -100,114 +187,216 @@ class Point:
     tx: np.ndarray
     tp: float
     arclength: float = 0.0
-    kind: str = "regular"          # regular | fold | branch_point | forced | bound | event:<name> | start
+    kind: str = Kind.REGULAR       # a Kind, or "event:<name>"
     iterations: int = 0
     ds: float = 0.0
     det_sign: int = 0
     det_log: float = 0.0
+    located: bool = True           # False: a special point bracketed but not located to its tolerance
     data: dict = field(default_factory=dict)
+    solver: object = field(default=None, repr=False)  # corrector matrix for steps from this point
 
 
 @dataclass
 class Event:
-    """A scalar test function ``g(point)``; a sign change is located; ``stop`` ends the trace there."""
+    """A scalar test function ``g(point)``; a sign change is located.
+
+    ``action``: ``"record"`` (a point is kept there), ``"stop"`` (the trace ends
+    there: a guard), or ``"segment"`` (the tracker ends there with
+    :attr:`Stop.SEGMENT`, for the caller to go on with another discretisation).
+    ``stop=True`` is the same as ``action="stop"``. A stopping event whose
+    ``g`` is already negative at the first point stops the trace at once
+    (:attr:`Stop.AT_START`).
+    """
 
     name: str
     function: Callable[[Point], float]
     stop: bool = False
     tol: float = 1e-11  # located where |g| <= tol * |g at the last point before it|
+    action: str = ""
+
+    def __post_init__(self):
+        if not self.action:
+            self.action = "stop" if self.stop else "record"
+        if self.action not in ("record", "stop", "segment"):
+            raise ValueError(f"event action must be record, stop or segment, got {self.action!r}")
+        self.stop = self.action == "stop"
+
+
+@dataclass
+class Finding:
+    """A special point found in a step: where (arclength offset), the point, and what it does."""
+
+    offset: float
+    point: Point | None
+    stop: StopReason | None = None
 
 
 # --------------------------------------------------------------------------
-# Sparse bordered systems
+# Detectors
 # --------------------------------------------------------------------------
-def bordered(J, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
-    """``[[J, b], [c^T, d]]`` as CSC, built directly from ``J``'s CSC arrays."""
-    J = J.tocsc() if sp.issparse(J) else sp.csc_matrix(np.asarray(J))
-    n = J.shape[0]
-    if not J.has_sorted_indices:
-        J.sort_indices()
-    ends = J.indptr[1:]
-    data = np.insert(J.data, ends, c)
-    indices = np.insert(J.indices, ends, n)
-    indptr = J.indptr + np.arange(n + 1)
-    data = np.concatenate([data, b, [d]])
-    indices = np.concatenate([indices, np.arange(n + 1)])
-    indptr = np.concatenate([indptr, [indptr[-1] + n + 1]])
-    return sp.csc_matrix((data, indices, indptr), shape=(n + 1, n + 1))
+class Detector:
+    """Looks at each accepted step ``base -> new`` and returns the special points in it."""
+
+    def check(self, tracker: "Tracker", base: Point, new: Point, ds: float) -> list[Finding]:
+        raise NotImplementedError
 
 
-def factorise(A: sp.csc_matrix):
-    """Sparse LU (natural column order: the problems here come banded)."""
-    return spla.splu(A, permc_spec="NATURAL")
+class FoldDetector(Detector):
+    """Turning points of ``p``: ``tp`` changes sign."""
+
+    def check(self, tracker, base, new, ds):
+        s = tracker.settings
+        on_fold_start = base.kind == Kind.START and abs(base.tp) < 1e3 * s.fold_tol  # restarted at a fold
+        if base.tp * new.tp < 0 and not on_fold_start:
+            f = tracker.locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, Kind.FOLD)
+            if f is not None:
+                return [Finding(f.ds, f)]
+        return []
+
+    @staticmethod
+    def hidden_pair(base: Point, new: Point, ds: float, tol: float) -> bool:
+        """Does the cubic Hermite model of ``p(s)`` on the step turn twice (two folds inside)?
+
+        Its derivative is the quadratic ``q(u) = tp0 (1 - u) + tp1 u + c u (1 - u)``
+        with ``c = 6 (dp/ds - (tp0 + tp1)/2)`` (so that ``q`` integrates to ``dp``).
+        """
+        if ds == 0 or base.tp * new.tp <= 0:
+            return False
+        c = 6.0 * ((new.p - base.p) / ds - 0.5 * (base.tp + new.tp))
+        if c == 0:
+            return False
+        # q(u) = tp0 + (tp1 - tp0 + c) u - c u^2: vertex at u* = (tp1 - tp0 + c) / (2c)
+        u = (new.tp - base.tp + c) / (2.0 * c)
+        if not 0 < u < 1:
+            return False
+        qmin = base.tp + (new.tp - base.tp + c) * u - c * u * u
+        return qmin * base.tp < 0 and abs(qmin) > tol
 
 
-def det_sign_log(lu) -> tuple[int, float]:
-    """Sign and log-magnitude of ``det`` from a SuperLU factorisation ``Pr A Pc = L U``."""
-    u = lu.U.diagonal()
-    sign = int(np.prod(np.sign(u))) * _perm_sign(lu.perm_r) * _perm_sign(lu.perm_c)
-    with np.errstate(divide="ignore"):
-        return sign, float(np.sum(np.log(np.abs(u))))
+class BranchPointDetector(Detector):
+    """Sign changes of ``det`` of the bordered Jacobian (located on ``det`` scaled at the base)."""
+
+    def check(self, tracker, base, new, ds):
+        s = tracker.settings
+        if base.det_sign * new.det_sign >= 0:
+            return []
+        ref, s0 = base.det_log, base.det_sign
+
+        def gdet(q):
+            return q.det_sign * s0 * math.exp(min(q.det_log - ref, 700.0))
+
+        g1 = -math.exp(min(new.det_log - ref, 700.0))
+        f = tracker.locate(base, ds, gdet, 1.0, g1, s.locate_tol, Kind.BRANCH_POINT)
+        return [Finding(f.ds, f)] if f is not None else []
 
 
-def _perm_sign(perm: np.ndarray) -> int:
-    perm = np.asarray(perm)
-    seen = np.zeros(perm.size, bool)
-    parity = 0
-    for start in np.flatnonzero(perm != np.arange(perm.size)):
-        if seen[start]:
-            continue
-        j, length = start, 0
-        while not seen[j]:
-            seen[j] = True
-            j = perm[j]
-            length += 1
-        parity += length - 1
-    return -1 if parity % 2 else 1
+class ValueDetector(Detector):
+    """Crossings of ``p = v``: forced points, or a bound that stops the trace."""
+
+    def __init__(self, values: Sequence[float], kind: str, stop: bool = False, name: str = ""):
+        self.values, self.kind, self.stop, self.name = [float(v) for v in values], kind, stop, name
+
+    def check(self, tracker, base, new, ds):
+        out = []
+        for v in self.values:
+            crossed = (base.p - v) * (new.p - v) < 0 or (self.stop and new.p == v and base.p != v)
+            if not crossed:
+                continue
+            f = tracker.locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v, 1e-13 * (1 + abs(v)), self.kind)
+            if f is None:
+                continue
+            if abs(f.p - v) < 1e-12 * (1 + abs(v)):
+                f.p = v
+            why = StopReason(Stop.BOUND, f"parameter bound {self.name} = {v:g} reached") if self.stop else None
+            out.append(Finding(f.ds, f, why))
+        return out
+
+
+class EventDetector(Detector):
+    def __init__(self, event: Event):
+        self.event = event
+
+    def check(self, tracker, base, new, ds):
+        ev = self.event
+        g0, g1 = ev.function(base), ev.function(new)
+        if not g0 * g1 < 0:
+            return []
+        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), 1e-300), f"event:{ev.name}")
+        status = {"stop": Stop.EVENT, "segment": Stop.SEGMENT}.get(ev.action)
+        if f is not None:
+            return [Finding(f.ds, f, StopReason(status, ev.name, ev.name) if status else None)]
+        if status is not None:  # crossed but not located: stop before the crossing, say so
+            return [Finding(ds, None, StopReason(status, f"{ev.name} (crossed between p = {base.p:.10g} and "
+                                                         f"{new.p:.10g}; not located)", ev.name))]
+        return []
+
+
+class StopContinuation(Exception):
+    pass
 
 
 # --------------------------------------------------------------------------
 # The tracker
 # --------------------------------------------------------------------------
-class StopContinuation(Exception):
-    pass
-
-
 class Tracker:
     """Pseudo-arclength tracker; iterate it to get the points one by one.
 
     ``monitor(x, p) -> dict`` (optional) adds named scalars to each point's
     ``data``; ``events`` are located where they change sign. After the
-    iteration ends, ``stop_reason`` says why.
+    iteration ends, ``stop`` (a :class:`StopReason`) says why, and
+    ``stop_reason`` is its message.
     """
 
     def __init__(self, problem, x0: np.ndarray, p0: float, settings: ContinuationSettings | None = None,
                  monitor: Callable | None = None, events: Sequence[Event] = (), tangent0=None,
-                 exact_start: bool = False):
+                 exact_start: bool = False, detectors: Sequence[Detector] | None = None):
         self.problem = problem
         self.settings = s = settings or ContinuationSettings()
         s.validate()
         self.monitor = monitor
         self.events = list(events)
-        self.stop_reason = ""
+        self.stop: StopReason | None = None
         self.n = np.asarray(x0).size
         self.wx = s.theta / self.n
         self.wp = 1.0 - s.theta
         self._x0, self._p0, self._t0 = np.asarray(x0, float), float(p0), tangent0
         self.steps = 0
         self.newton_iterations = 0
+        self.factorisations = 0
         self.current: Point | None = None
+        self._previous: Point | None = None  # the point before current, for the second-order predictor
         self.ds = s.ds
-        self._last_newton: NewtonResult | None = None
         # exact_start: (x0, p0) is a solution and tangent0 the direction to leave it by,
         # used as is (branch switching: at a branch point no bordered system is regular)
         self.exact_start = exact_start
         if exact_start and tangent0 is None:
             raise ValueError("exact_start needs tangent0")
+        if detectors is None:
+            detectors = []
+            if s.detect_folds:
+                detectors.append(FoldDetector())
+            if s.detect_branch_points:
+                detectors.append(BranchPointDetector())
+            forced = sorted(set(float(v) for v in s.forced) - {s.p_min, s.p_max})  # bounds are located anyway
+            if forced:
+                detectors.append(ValueDetector(forced, Kind.FORCED))
+            for v, name in ((s.p_max, "p_max"), (s.p_min, "p_min")):
+                if math.isfinite(v):
+                    detectors.append(ValueDetector([v], Kind.BOUND, stop=True, name=name))
+            detectors += [EventDetector(ev) for ev in self.events]
+        self.detectors = list(detectors)
+
+    @property
+    def stop_reason(self) -> str:
+        return self.stop.message if self.stop is not None else ""
 
     def _wnorm(self, v) -> float:
         """Arclength norm of a vector ``(dx, dp)``."""
         return math.sqrt(self.wx * float(v[:-1] @ v[:-1]) + self.wp * float(v[-1]) ** 2)
+
+    def _wdot(self, a: Point, b: Point) -> float:
+        return self.wx * float(a.tx @ b.tx) + self.wp * a.tp * b.tp
 
     # ---- linear algebra on the problem -----------------------------------
     def _linearise(self, x, p):
@@ -218,73 +407,165 @@ class Tracker:
         J, Fp = pb.tangent(x, p)
         return F, J, Fp
 
-    def _tangent_at(self, x, p, tx_ref, tp_ref, lu=None):
-        """Unit tangent at a solution, oriented along ``(tx_ref, tp_ref)``; with det info.
+    def _border(self, tx, tp) -> np.ndarray:
+        return np.append(self.wx * np.asarray(tx, float), self.wp * float(tp))
 
-        ``lu``: a factorisation of the bordered matrix with that border at (or
-        within a converged Newton step of) ``(x, p)``, reused instead of a new one.
+    def _tangent_at(self, x, p, tx_ref, tp_ref, linearisation=None, arc_residual=None):
+        """Unit tangent at a solution, oriented along ``(tx_ref, tp_ref)``; with det and the LU.
+
+        The bordered matrix ``[[J, F_p], [w t_ref]]`` is factorised once: its solve with
+        ``(0, 1)`` is the tangent (``c.t = 1 > 0`` orients it along the reference),
+        its determinant sign is that of the matrix bordered by the tangent itself
+        (no singular matrix in between), and, with its last row changed to the new
+        tangent, it is the corrector matrix of the next step. With ``arc_residual``
+        (the residual ``g`` of the arclength condition whose border is ``t_ref``) it
+        also gives a last Newton correction of ``(x, p)``, returned as ``dy``.
         """
-        if lu is None:
-            _, J, Fp = self._linearise(x, p)
-            lu = factorise(bordered(J, np.asarray(Fp, float), self.wx * tx_ref, self.wp * tp_ref))
+        if linearisation is None:
+            linearisation = self._linearise(x, p)
+        F, J, Fp = linearisation
+        row = self._border(tx_ref, tp_ref)
+        lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+        self.factorisations += 1
         rhs = np.zeros(self.n + 1)
         rhs[-1] = 1.0
         t = lu.solve(rhs)
-        tx, tp = t[:-1], t[-1]
-        # c.t = 1 > 0 orients t along the reference; the same LU gives det: with a border
-        # that has a positive product with the tangent its sign is that of the bordered
-        # matrix built on the tangent itself (no singular matrix in between).
+        dy = None if arc_residual is None else lu.solve(-np.append(F, arc_residual))
+        tx, tp = t[:-1], float(t[-1])
         norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
-        sign, log = det_sign_log(lu)
-        return tx / norm, float(tp / norm), sign, log
+        sign, log = lu.det()
+        tx, tp = tx / norm, tp / norm
+        solver = lu.with_last_row(row, self._border(tx, tp), t)
+        return tx, tp, sign, log, solver, dy
 
-    def _correct(self, base: Point, ds: float, max_iter: int | None = None):
-        """Predictor from ``base`` with step ``ds``, Keller corrector. Returns (x, p, iterations, lu) or None."""
-        s = self.settings
-        x = base.x + ds * base.tx
-        p = base.p + ds * base.tp
-        c, d = self.wx * base.tx, self.wp * base.tp
-
-        def lin(y):
-            xx, pp = y[:-1], y[-1]
-            F, J, Fp = self._linearise(xx, pp)
-            g = c @ (xx - base.x) + d * (pp - base.p) - ds
-            return np.append(F, g), bordered(J, np.asarray(Fp, float), c, d)
-
-        def res(y):
-            xx, pp = y[:-1], y[-1]
-            return np.append(self.problem.residual(xx, pp), c @ (xx - base.x) + d * (pp - base.p) - ds)
-
-        r = newton_solve(lin, res, np.append(x, p), tol=s.newton_tol, max_iter=max_iter or s.newton_max_iter,
-                         min_damping=0.25)
-        self._last_newton = r
-        self.newton_iterations += r.iterations
-        if not r.converged:
-            return None
-        # Step-length guards (Allgower & Georg): a first correction large against ds, or a
-        # Newton iteration that does not contract at once, means the step may have
-        # jumped across a fold or onto another branch.
-        if ds > 0 and r.corrections:
-            d1 = self._wnorm(r.corrections[0])
-            if d1 > s.max_correction * ds:
-                return None
-            if len(r.corrections) > 1 and self._wnorm(r.corrections[1]) > s.max_contraction * d1 + 1e-12:
-                return None
-        return r.x[:-1], float(r.x[-1]), r.iterations, r.lu
-
-    def _make_point(self, x, p, base: Point, ds: float, iterations: int, kind="regular", lu=None) -> Point | None:
-        """The point with its tangent and monitor data; None if the tangent system is singular."""
+    def _make_point(self, x, p, base: Point, ds: float, iterations: int, kind=Kind.REGULAR,
+                    linearisation=None) -> Point | None:
+        """The point at a converged ``(x, p)`` with its tangent, det and corrector matrix;
+        None if the tangent system is singular."""
         try:
-            tx, tp, sign, log = self._tangent_at(x, p, base.tx, base.tp, lu)
-        except RuntimeError:  # exactly singular bordered matrix
+            tx, tp, sign, log, solver, _ = self._tangent_at(x, p, base.tx, base.tp, linearisation)
+        except SingularMatrix:
             return None
         if not (np.all(np.isfinite(tx)) and math.isfinite(tp)):
             return None
+        return self._point(x, p, tx, tp, base, ds, iterations, kind, sign, log, solver)
+
+    def _point(self, x, p, tx, tp, base, ds, iterations, kind, sign, log, solver) -> Point:
         pt = Point(x=x, p=p, tx=tx, tp=tp, arclength=base.arclength + ds, kind=kind,
-                   iterations=iterations, ds=ds, det_sign=sign, det_log=log)
+                   iterations=iterations, ds=ds, det_sign=sign, det_log=log, solver=solver)
         if self.monitor is not None:
             pt.data = dict(self.monitor(x, p))
         return pt
+
+    # ---- the corrector -----------------------------------------------------------
+    def _augmented_residual(self, y, base: Point, ds: float):
+        x, p = y[:-1], y[-1]
+        F = self.problem.residual(x, p)
+        g = self.wx * float(base.tx @ (x - base.x)) + self.wp * base.tp * (p - base.p) - ds
+        return np.append(F, g)
+
+    def _correct(self, base: Point, ds: float, kind=Kind.REGULAR, max_iter: int | None = None):
+        """Predictor from ``base`` with step ``ds``, then the corrector; returns ``(point, info)``
+        or ``(None, why)``.
+
+        Chord iterations with the base matrix first (one residual and one solve
+        each); then Newton iterations whose factorisation also gives the tangent:
+        the first one that moves the point by less than the tolerance ends the
+        corrector, so after a converged chord it costs the one factorisation the
+        tangent needs anyway. ``info``: the first chord contraction and the distance
+        from the predictor (weighted norm / ds), for step control and the
+        branch-jump guards.
+        """
+        s = self.settings
+        y_pred = np.append(base.x + ds * base.tx, base.p + ds * base.tp)
+        prev = self._previous
+        if prev is not None and prev.x.size == base.x.size and base.ds != 0 and kind == Kind.REGULAR:
+            # second-order predictor: the tangent's change per unit arclength over the last step
+            kx = (base.tx - prev.tx) / base.ds
+            kp = (base.tp - prev.tp) / base.ds
+            y_pred[:-1] += 0.5 * ds * ds * kx
+            y_pred[-1] += 0.5 * ds * ds * kp
+        y = y_pred.copy()
+        tol = s.newton_tol
+        # a regular point is accepted when the last Newton step is this small (its error is then
+        # of the order of its square); located points need the tolerance itself
+        accept = tol
+        info = dict(contraction=0.0, distance=0.0, newton=0)
+        iterations = 0
+        if base.solver is not None:
+            sizes: list[float] = []
+            for _ in range(s.chord_max_iter):
+                r = self._augmented_residual(y, base, ds)
+                if not np.all(np.isfinite(r)):
+                    return None, "the residual is not finite"
+                dy = base.solver.solve(-r)
+                iterations += 1
+                size = max_norm(dy)
+                if not math.isfinite(size):
+                    return None, "the corrector diverged"
+                y_next = y + dy
+                scale = tol * (1 + max_norm(y_next))
+                if sizes:
+                    rate = size / sizes[-1] if sizes[-1] > 0 else 0.0
+                    if len(sizes) == 1:
+                        # the first ratio: how far the step took the Jacobian from the base's
+                        info["contraction"] = rate
+                        if rate > s.max_contraction:
+                            break  # too far for the chord: Newton from the first correction
+                    if rate > 0.9:
+                        break
+                    y = y_next
+                    sizes.append(size)
+                    if size * rate / max(1 - rate, 1e-3) <= 0.1 * scale:
+                        break
+                else:
+                    y = y_next
+                    sizes.append(size)
+                    if size <= 0.1 * scale:
+                        break
+        # Newton, each factorisation also giving the tangent
+        row = self._border(base.tx, base.tp)
+        e = np.zeros(self.n + 1)
+        e[-1] = 1.0
+        prev = math.inf
+        for _ in range(max_iter or s.newton_max_iter):
+            x, p = y[:-1], float(y[-1])
+            F, J, Fp = self._linearise(x, p)
+            g = float(row[:-1] @ (x - base.x)) + row[-1] * (p - base.p) - ds
+            r = np.append(F, g)
+            if not np.all(np.isfinite(r)):
+                return None, "the residual is not finite"
+            try:
+                lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+            except SingularMatrix:
+                return None, "singular Jacobian"
+            self.factorisations += 1
+            info["newton"] += 1
+            iterations += 1
+            dy = lu.solve(-r)
+            size = max_norm(dy)
+            if not math.isfinite(size) or size > 2 * prev:
+                self.newton_iterations += iterations
+                return None, "the corrector diverged"
+            if size <= accept * (1 + max_norm(y)):
+                t = lu.solve(e)
+                tx, tp = t[:-1], float(t[-1])
+                norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
+                if not (math.isfinite(norm) and norm > 0):
+                    return None, "the tangent system is singular"
+                tx, tp = tx / norm, tp / norm
+                sign, log = lu.det()
+                solver = lu.with_last_row(row, self._border(tx, tp), t)
+                y = y + dy
+                self.newton_iterations += iterations
+                if ds != 0:
+                    info["distance"] = self._wnorm(y - y_pred) / abs(ds)
+                pt = self._point(y[:-1], float(y[-1]), tx, tp, base, ds, iterations, kind, sign, log, solver)
+                return pt, info
+            y = y + dy
+            prev = size
+        self.newton_iterations += iterations
+        return None, "the corrector did not converge"
 
     # ---- start -------------------------------------------------------------------
     def start(self) -> Point:
@@ -299,7 +580,7 @@ class Tracker:
         if self.exact_start:
             tx, tp = np.asarray(self._t0[0], float), float(self._t0[1])
             norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
-            pt = Point(x=self._x0.copy(), p=self._p0, tx=tx / norm, tp=tp / norm, kind="start")
+            pt = Point(x=self._x0.copy(), p=self._p0, tx=tx / norm, tp=tp / norm, kind=Kind.START)
             if self.monitor is not None:
                 pt.data = dict(self.monitor(pt.x, pt.p))
             self.current = pt
@@ -308,31 +589,52 @@ class Tracker:
             tx_ref, tp_ref = np.zeros(self.n), float(s.direction)
             r = newton_solve(lambda x: self._linearise(x, self._p0)[:2],
                              lambda x: self.problem.residual(x, self._p0), self._x0, tol=s.newton_tol, max_iter=30)
+            self.newton_iterations += r.iterations
             x, p = r.x, self._p0
+            ok, message = r.converged, r.message
         else:
             tx_ref, tp_ref = np.asarray(self._t0[0], float), float(self._t0[1])
             norm = math.sqrt(self.wx * tx_ref @ tx_ref + self.wp * tp_ref * tp_ref)
-            if not norm > 0:
+            if not norm > 0 or not math.isfinite(norm):
                 raise StopContinuation("the restart direction is zero")
             tx_ref, tp_ref = tx_ref / norm, tp_ref / norm
             base = Point(x=self._x0, p=self._p0, tx=tx_ref, tp=tp_ref)
-            c = self._correct(base, 0.0, max_iter=30)
-            r = self._last_newton
-            x, p = (c[0], c[1]) if c is not None else (self._x0, self._p0)
-        if not r.converged:
-            raise StopContinuation(f"no convergence at the starting point ({r.message})")
+            pt, why = self._correct(base, 0.0, kind=Kind.START, max_iter=30)
+            if pt is None:
+                raise StopContinuation(f"no convergence at the starting point ({why})")
+            pt.arclength = 0.0
+            self.current = pt
+            return pt
+        if not ok:
+            raise StopContinuation(f"no convergence at the starting point ({message})")
         base = Point(x=x, p=p, tx=tx_ref, tp=tp_ref)
-        pt = self._make_point(x, p, base, 0.0, r.iterations, kind="start")
+        pt = self._make_point(x, p, base, 0.0, 0, kind=Kind.START)
         if pt is None:
             raise StopContinuation("the starting point is singular (no unique tangent): use branch switching")
         pt.arclength = 0.0
         self.current = pt
         return pt
 
+    def _check_start(self, pt: Point) -> StopReason | None:
+        """A bound or a stopping event already violated at the first point stops at once."""
+        s = self.settings
+        if not s.p_min <= pt.p <= s.p_max:
+            return StopReason(Stop.AT_START, f"the start p = {pt.p:.10g} is outside the bounds "
+                                             f"[{s.p_min:g}, {s.p_max:g}]")
+        for ev in self.events:
+            if ev.action in ("stop", "segment") and ev.function(pt) < 0:
+                return StopReason(Stop.AT_START if ev.action == "stop" else Stop.SEGMENT,
+                                  f"{ev.name} (already at the start)", ev.name)
+        return None
+
     # ---- location of special points --------------------------------------------
-    def _locate(self, base: Point, ds_hi: float, g: Callable[[Point], float], g0: float, g1: float,
-                tol: float, kind: str) -> Point | None:
-        """Secant (Illinois) on ``g`` along the arc from ``base``; ``g(0) = g0``, ``g(ds_hi) = g1``."""
+    def locate(self, base: Point, ds_hi: float, g: Callable[[Point], float], g0: float, g1: float,
+               tol: float, kind: str) -> Point | None:
+        """Secant (Illinois) on ``g`` along the arc from ``base``; ``g(0) = g0``, ``g(ds_hi) = g1``.
+
+        Returns the located point (``located`` True when ``|g| <= tol``), the
+        best bracketed one otherwise, or None if no point in the bracket converged.
+        """
         s = self.settings
         a, b, fa, fb = 0.0, ds_hi, g0, g1
         side = 0
@@ -344,16 +646,12 @@ class Tracker:
             pt = None
             for nudge in (0.0, 1e-9, -1e-9):  # exactly on a branch point the bordered matrix is singular
                 mm = m + nudge * ds_hi
-                c = self._correct(base, mm)
-                if c is not None:
-                    # a fold's test function is the tangent itself: it needs the tangent at the
-                    # converged point; the others read the corrector's last factorisation
-                    pt = self._make_point(c[0], c[1], base, mm, c[2], kind=kind, lu=None if kind == "fold" else c[3])
+                pt, _ = self._correct(base, mm, kind=kind)
                 if pt is not None:
                     m = mm
                     break
             if pt is None:
-                return best
+                break
             fm = g(pt)
             best = pt
             if abs(fm) <= tol:
@@ -370,106 +668,97 @@ class Tracker:
                 side = 1
             if abs(b - a) <= 1e-15 * (1 + abs(ds_hi)):
                 return pt
+        if best is not None:
+            best.located = False
         return best
 
     def _accept(self, pt: Point) -> None:
         """Make ``pt`` the current point; problems with an ``accept(x, p)`` hook are told."""
+        self._previous = self.current
         self.current = pt
         hook = getattr(self.problem, "accept", None)
         if hook is not None:
             hook(pt.x, pt.p)
 
+    # ---- one step ------------------------------------------------------------------
+    def _try_step(self, base: Point, ds: float):
+        """Corrector and acceptance tests for one step; returns ``(point, info)`` or ``(None, why)``."""
+        s = self.settings
+        new, info = self._correct(base, ds)
+        if new is None:
+            return None, info
+        if info["distance"] > s.max_distance:
+            return None, "the corrector moved too far from the predictor (another branch?)"
+        cos_t = self._wdot(new, base)
+        sec = np.append(new.x - base.x, new.p - base.p)
+        sec_norm = self._wnorm(sec)
+        cos_s = (self.wx * float(base.tx @ sec[:-1]) + self.wp * base.tp * sec[-1]) / sec_norm if sec_norm > 0 else 1.0
+        if min(cos_t, cos_s) < math.cos(s.max_angle):
+            return None, "the tangent turns too fast"
+        if s.detect_folds and s.detect_fold_pairs and FoldDetector.hidden_pair(base, new, ds, s.fold_tol):
+            return None, "two folds in one step"
+        info["angle"] = math.acos(min(1.0, cos_t))
+        return new, info
+
+    def _next_ds(self, ds: float, info: dict) -> float:
+        """Step control on the measured contraction, distance and angle (Allgower & Georg)."""
+        s = self.settings
+        factors = [s.grow]
+        if info.get("angle", 0) > 0:
+            factors.append(s.target_angle / info["angle"])
+        if info.get("newton", 0) > 1:  # the chord did not converge: a step this long is enough
+            factors.append(1.0)
+        if info.get("distance", 0) > 0:
+            factors.append(math.sqrt(0.5 * s.max_distance / info["distance"]))
+        f = max(s.shrink, min(factors))
+        return min(max(abs(ds) * f, s.ds_min), s.ds_max)
+
     # ---- iteration -----------------------------------------------------------------
     def __iter__(self) -> Iterator[Point]:
         if self.current is None:
-            yield self.start()
+            first = self.start()
+            yield first
+            why = self._check_start(first)
+            if why is not None:
+                self.stop = why
+                return
         s = self.settings
-        forced = sorted(set(float(v) for v in s.forced) - {s.p_min, s.p_max})  # bounds are located anyway
         while True:
             if self.steps >= s.max_steps:
-                self.stop_reason = f"maximum number of steps ({s.max_steps}) reached"
+                self.stop = StopReason(Stop.MAX_STEPS, f"maximum number of steps ({s.max_steps}) reached")
                 return
             base = self.current
+            if base.solver is None:  # e.g. an exact start: factorise at the base once
+                lin = self._linearise(base.x, base.p)
+                try:
+                    base.solver = self._tangent_at(base.x, base.p, base.tx, base.tp, lin)[4]
+                except SingularMatrix:
+                    base.solver = None
             ds = self.ds
-            new = None
-            while new is None:
-                c = self._correct(base, ds)
-                if c is not None:
-                    # the corrector's last factorisation gives the tangent to O(last step)
-                    cand = self._make_point(c[0], c[1], base, ds, c[2], lu=c[3])
-                    cos = -1.0 if cand is None else self.wx * cand.tx @ base.tx + self.wp * cand.tp * base.tp
-                    if cos >= math.cos(s.max_angle):
-                        new = cand
-                        break
+            while True:
+                new, info = self._try_step(base, ds)
+                if new is not None:
+                    break
                 ds *= s.shrink
                 if ds < s.ds_min:
-                    why = "the corrector did not converge" if c is None else "the tangent turns too fast"
-                    self.stop_reason = f"step size fell below ds_min = {s.ds_min:g} ({why}) at p = {base.p:.10g}"
+                    self.stop = StopReason(Stop.STEP_TOO_SMALL, f"step size fell below ds_min = {s.ds_min:g} "
+                                                                f"({info}) at p = {base.p:.10g}")
                     return
             self.steps += 1
-            iters = new.iterations
-            found: list[tuple[float, Point, bool, str]] = []  # (arclength offset, point, stop, reason)
-
-            # folds
-            on_fold_start = base.kind == "start" and abs(base.tp) < 1e3 * s.fold_tol  # restarted at a fold
-            if s.detect_folds and base.tp * new.tp < 0 and not on_fold_start:
-                f = self._locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, "fold")
-                if f is not None:
-                    found.append((f.ds, f, False, ""))
-            # branch points
-            if s.detect_branch_points and base.det_sign * new.det_sign < 0:
-                g0 = 1.0
-                g1 = -math.exp(min(new.det_log - base.det_log, 700.0))
-                ref = base.det_log
-
-                def gdet(q, ref=ref, s0=base.det_sign):
-                    return q.det_sign * s0 * math.exp(min(q.det_log - ref, 700.0))
-
-                f = self._locate(base, ds, gdet, g0, g1, s.locate_tol, "branch_point")
-                if f is not None:
-                    found.append((f.ds, f, False, ""))
-            # forced values and bounds
-            for v in forced:
-                if (base.p - v) * (new.p - v) < 0:
-                    f = self._locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v,
-                                     1e-13 * (1 + abs(v)), "forced")
-                    if f is not None:
-                        f.p = v if abs(f.p - v) < 1e-12 * (1 + abs(v)) else f.p
-                        found.append((f.ds, f, False, ""))
-            for v, name in ((s.p_max, "p_max"), (s.p_min, "p_min")):
-                if math.isfinite(v) and (new.p - v) * (base.p - v) <= 0 and new.p != base.p and base.p != v:
-                    f = self._locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v,
-                                     1e-13 * (1 + abs(v)), "bound")
-                    if f is not None:
-                        found.append((f.ds, f, True, f"parameter bound {name} = {v:g} reached"))
-            # user events
-            for ev in self.events:
-                g0, g1 = ev.function(base), ev.function(new)
-                if g0 * g1 < 0:
-                    f = self._locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), 1e-300),
-                                     f"event:{ev.name}")
-                    if f is not None:
-                        found.append((f.ds, f, ev.stop, f"{ev.name}"))
-                    elif ev.stop:  # crossed but not located: stop before the crossing, say so
-                        found.append((ds, None, True, f"{ev.name} (crossed between p = {base.p:.10g} and "
-                                                      f"{new.p:.10g}; not located)"))
-            found.sort(key=lambda item: item[0])
-            for _, pt, stop, reason in found:
-                if pt is not None:
-                    self._accept(pt)
-                    yield pt
-                if stop:
-                    self.stop_reason = reason
+            found: list[Finding] = []
+            for det in self.detectors:
+                found += det.check(self, base, new, ds)
+            found.sort(key=lambda f: f.offset)
+            for f in found:
+                if f.point is not None:
+                    self._accept(f.point)
+                    yield f.point
+                if f.stop is not None:
+                    self.stop = f.stop
                     return
             self._accept(new)
             yield new
-            # step control
-            if iters <= s.fast_iterations:
-                self.ds = min(ds * s.grow, s.ds_max)
-            elif iters >= s.newton_max_iter - 1:
-                self.ds = max(ds * s.shrink, s.ds_min)
-            else:
-                self.ds = ds
+            self.ds = self._next_ds(ds, info)
 
 
 def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, monitor=None,
@@ -484,5 +773,5 @@ def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, 
             if callback is not None:
                 callback(pt)
     except StopContinuation as exc:
-        tr.stop_reason = str(exc)
+        tr.stop = StopReason(Stop.START_FAILED, str(exc))
     return points, tr.stop_reason

@@ -1,40 +1,68 @@
-"""Figures from branch files: the response diagram (paper Figure 2) and 3D shapes."""
+"""Figures from branch and diagram files: the response diagram (paper Figure 2) and 3D shapes.
+
+Figures are drawn with matplotlib's object interface on an Agg canvas: no
+pyplot, so the caller's backend and global state are left alone.
+"""
 
 from __future__ import annotations
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .branchfile import BranchData  # noqa: E402
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 
-def response_diagram(branches: list[BranchData], path: str, title: str | None = None) -> None:
-    """``phi_L`` (vertical) against ``stretch``, one curve per branch labelled by Gamma, folds marked.
+def _figure(w, h):
+    fig = Figure(figsize=(w, h))
+    FigureCanvasAgg(fig)
+    return fig
 
-    A fold-curve file (``param`` attribute other than ``phi_L``) is drawn as
-    ``phi_L`` at the fold against the continued parameter, on its own axes.
+
+def _cmap(name):
+    import matplotlib
+    return matplotlib.colormaps[name]
+
+
+def response_diagram(files, path: str, title: str | None = None) -> None:
+    """``phi_L`` (vertical) against ``stretch``: every branch of every file, one colour per Gamma.
+
+    ``files``: :class:`rodcont.branchfile.DiagramData` (a trace file is a
+    diagram of one branch). Folds are marked (○) and, in diagrams, labelled
+    with the helical waves on their two sides (``1→2``); × marks where a
+    branch ends. A fold-curve file is drawn as ``phi_L`` at the fold against
+    its parameter, on its own axes.
     """
-    ordinary = [b for b in branches if b.attrs.get("param", "phi_L") == "phi_L"]
-    loci = [b for b in branches if b.attrs.get("param", "phi_L") != "phi_L"]
+    ordinary = [d for d in files if d.attrs.get("kind", "branch") != "fold_curve"
+                and d.attrs.get("param", "phi_L") == "phi_L"]
+    loci = [d for d in files if d not in ordinary]
     ncols = (1 if ordinary else 0) + (1 if loci else 0)
-    fig, axes = plt.subplots(1, ncols, figsize=(6.5 * ncols, 5.5), squeeze=False)
+    fig = _figure(7.0 * ncols, 5.8)
+    axes = [fig.add_subplot(1, ncols, i + 1) for i in range(ncols)]
     col = 0
     if ordinary:
-        ax = axes[0, col]
+        ax = axes[col]
         col += 1
-        cmap = plt.get_cmap("viridis")
-        gammas = sorted({b.gamma for b in ordinary})
-        for b in sorted(ordinary, key=lambda b: b.gamma):
-            c = cmap(gammas.index(b.gamma) / max(len(gammas) - 1, 1))
-            ax.plot(b.branch["stretch"], b.branch["phi_L"], "-", color=c, lw=1.4, label=f"Γ = {b.gamma:g}")
-            f = b.folds
-            if f and len(f.get("index", [])):
-                ax.plot(f["stretch"], f["phi_L"], "o", ms=5, mfc="white", mec=c, mew=1.5)
-            ax.plot(b.branch["stretch"][-1:], b.branch["phi_L"][-1:], "x", color=c, ms=6)
-        smin = min(float(np.min(b.branch["stretch"])) for b in ordinary)
+        cmap = _cmap("viridis")
+        gammas = sorted({float(d.attrs.get("gamma", 0.0)) for d in ordinary})
+        smin = np.inf
+        for d in sorted(ordinary, key=lambda d: float(d.attrs.get("gamma", 0.0))):
+            g = float(d.attrs.get("gamma", 0.0))
+            c = cmap(0.9 * gammas.index(g) / max(len(gammas) - 1, 1))
+            is_diagram = d.attrs.get("kind") == "diagram"
+            for j, b in enumerate(d.branches):
+                s, p = b.branch["stretch"], b.branch["phi_L"]
+                smin = min(smin, float(np.min(s)))
+                label = f"Γ = {g:g}" + (" (diagram)" if is_diagram else "") if j == 0 else None
+                ax.plot(s, p, "-", color=c, lw=1.4, label=label)
+                f = b.folds
+                if f and len(f.get("index", [])):
+                    ax.plot(f["stretch"], f["phi_L"], "o", ms=5, mfc="white", mec=c, mew=1.5)
+                    if is_diagram:
+                        for fs, fp, wb, wa in zip(f["stretch"], f["phi_L"], f["waves_before"], f["waves_after"]):
+                            ax.annotate(f"{wb}→{wa}", (fs, fp), textcoords="offset points", xytext=(4, 4),
+                                        fontsize=7, color=c)
+                ax.plot(s[-1:], p[-1:], "x", color=c, ms=6)
+                if is_diagram:
+                    ax.plot(s[:1], p[:1], "x", color=c, ms=6)
         if smin > 0:
             ax.set_xscale("log")  # the stretch spans decades: from the sag to the loop
         else:
@@ -42,26 +70,28 @@ def response_diagram(branches: list[BranchData], path: str, title: str | None = 
         ax.set_xlabel("stretch  (ℓ − L) / L")
         ax.set_ylabel("end rotation  Φ = φ(L)  [rad]")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="lower right", fontsize=9, title="○ fold   × end of trace", title_fontsize=8)
+        ax.legend(loc="best", fontsize=9, title="○ fold (waves before→after)   × end", title_fontsize=8)
         ax.set_title(title or "Response diagram: twisted heavy clamped rod")
     if loci:
-        ax = axes[0, col]
-        for b in loci:
-            param = b.attrs["param"]
-            ax.plot(b.branch[param], b.branch["phi_L"], "-", lw=1.4, label=f"fold locus in {param}")
-            ax.set_xlabel(param)
+        ax = axes[col]
+        for d in loci:
+            for b in d.branches:
+                param = d.attrs.get("param")
+                order = np.argsort(b.branch["arclength"])
+                ax.plot(b.branch[param][order], b.branch["phi_L"][order], "-", lw=1.4,
+                        label=f"fold locus in {param}")
+                ax.set_xlabel(param)
         ax.set_ylabel("Φ at the fold  [rad]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=9)
         ax.set_title("Fold curves")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)
 
 
 def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "") -> None:
     """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales."""
-    fig = plt.figure(figsize=(8, 5))
+    fig = _figure(8, 5)
     ax = fig.add_subplot(projection="3d")
     allpts = np.concatenate([r for r, _ in curves], axis=1)
     for r, label in curves:
@@ -78,4 +108,3 @@ def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)

@@ -33,6 +33,25 @@ FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
 ORDERS = (3, 3, 2, 1, 1, 1)
 
 
+_JET_START = {f: int(sum(m + 1 for m in ORDERS[:i])) for i, f in enumerate(FIELDS)}
+
+
+class Jet:
+    """Named rows of the local jet ``z`` (each field and its S-derivatives up to its order).
+
+    ``Jet.D1[j]``, ``Jet.D2[j]``: ``Delta1^(j)``, ``Delta2^(j)`` (j = 0..3);
+    ``Jet.PHI[j]``: ``phi^(j)`` (j = 0..2); ``Jet.F``, ``Jet.FP``: the force
+    components on ``K1, K2, K3`` and their first derivatives.
+    """
+
+    D1 = tuple(range(_JET_START["Delta1"], _JET_START["Delta1"] + 4))
+    D2 = tuple(range(_JET_START["Delta2"], _JET_START["Delta2"] + 4))
+    PHI = tuple(range(_JET_START["phi"], _JET_START["phi"] + 3))
+    F = [_JET_START["F.K1"], _JET_START["F.K2"], _JET_START["F.K3"]]
+    FP = [_JET_START["F.K1"] + 1, _JET_START["F.K2"] + 1, _JET_START["F.K3"] + 1]
+    SIZE = int(sum(m + 1 for m in ORDERS))
+
+
 # --------------------------------------------------------------------------
 # Vector helpers on (3, npts) arrays (np.cross is slow on small arrays)
 # --------------------------------------------------------------------------
@@ -176,8 +195,13 @@ class EulerianRod:
         self.g = np.asarray(self.rod.weight_direction, float)
         self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
         self.gK = self.frame @ self.g  # weight direction in frame components
+        # The residual reads the jets through r' and its derivatives: with a constant frame the
+        # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
+        unused = (Jet.D1[0], Jet.D2[0], Jet.PHI[0])
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
-                                 interval=(0.0, self.rod.L), params=PARAMS, names=FIELDS)
+                                 interval=(0.0, self.rod.L), params=PARAMS, names=FIELDS,
+                                 jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
+                                 residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")])
 
     def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
         r = self.rod
@@ -191,17 +215,19 @@ class EulerianRod:
     # and projections on K1, K2 are plain components (fewer operations per point).
     def _frame_jets(self, z):
         """First three S-derivatives of ``r`` in frame components, each ``(3, npts)``."""
+        D1, D2 = Jet.D1, Jet.D2
         one = np.ones_like(z[0])
         zero = np.zeros_like(z[0])
-        return (np.stack([z[1], z[5], one]), np.stack([z[2], z[6], zero]), np.stack([z[3], z[7], zero]))
+        return (np.stack([z[D1[1]], z[D2[1]], one]), np.stack([z[D1[2]], z[D2[2]], zero]),
+                np.stack([z[D1[3]], z[D2[3]], zero]))
 
     def residual(self, S, z, p):
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
         phi_L, T, w, EI, GJ, EA = p
         r1, r2, r3 = self._frame_jets(z)
-        F = z[[11, 13, 15]]
-        Fp = z[[12, 14, 16]]
-        phi1, phi2 = z[9], z[10]
+        F = z[Jet.F]
+        Fp = z[Jet.FP]
+        phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
         n2 = _dot(r1, r1)
         n = np.sqrt(n2)
         d3 = r1 / n
@@ -232,8 +258,9 @@ class EulerianRod:
     def bc(self, za, zb, p):
         """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(L) = phi_L``, tension."""
         phi_L, T = p[0], p[1]
-        return np.stack([za[0], za[1], za[4], za[5], zb[0], zb[1], zb[4], zb[5],
-                         za[8], zb[8] - phi_L, zb[15] - T])
+        D1, D2, PHI = Jet.D1, Jet.D2, Jet.PHI
+        return np.stack([za[D1[0]], za[D1[1]], za[D2[0]], za[D2[1]], zb[D1[0]], zb[D1[1]], zb[D2[0]], zb[D2[1]],
+                         za[PHI[0]], zb[PHI[0]] - phi_L, zb[Jet.F[2]] - T])
 
     def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
         if breakpoints is None:
@@ -279,6 +306,10 @@ class EulerianRod:
             out = disc._rod_outputs = _Outputs(self, disc, samples)
         return out
 
+    def stretch_factor_min(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> float:
+        """Smallest stretch factor ``alpha = 1 + F.d3/EA`` at the collocation points."""
+        return float(np.min(self._axial_quantities(disc.S, disc.jets(x), p)[1]))
+
     def torque_profile(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """``m = GJ J1 (phi' + tau_q)`` at the collocation points."""
         return self._axial_quantities(disc.S, disc.jets(x), p)[0]
@@ -289,11 +320,11 @@ class EulerianRod:
         r1, r2, _ = self._frame_jets(z)
         n = np.sqrt(_dot(r1, r1))
         d3 = r1 / n
-        F = z[[11, 13, 15]]
+        F = z[Jet.F]
         d3p = (r2 - d3 * _dot(d3, r2)) / n
         alpha = 1.0 + _dot(F, d3) / EA
         tau = -(d3[0] * d3p[1] - d3[1] * d3p[0]) / (1.0 + d3[2])
-        m = GJ * alpha / n * (z[9] + tau)
+        m = GJ * alpha / n * (z[Jet.PHI[1]] + tau)
         return m, alpha, n, d3
 
     def centreline(self, disc: Collocation, x: np.ndarray, S: np.ndarray) -> np.ndarray:
@@ -325,7 +356,15 @@ class EulerianRod:
 
 
 class _Outputs:
-    """Evaluation matrices for the derived outputs of one discretisation (built once)."""
+    """Evaluation matrices for the derived outputs of one discretisation (built once).
+
+    One sparse product gives everything the outputs read: ``Delta1, Delta2`` and
+    their slopes on a grid of ``samples`` points per subinterval, the jets at the
+    mesh points (where Gauss collocation is superconvergent, O(h^2k): the torque
+    is read there) and the jets at the check points between the collocation
+    points (where the residual is not forced to zero: its size there, the
+    defect, indicates the discretisation error).
+    """
 
     def __init__(self, model: EulerianRod, disc: Collocation, samples: int):
         self.model, self.disc, self.samples = model, disc, samples
@@ -333,22 +372,30 @@ class _Outputs:
         t = np.linspace(0.0, 1.0, samples + 1)[:-1]
         S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
         self.S = S
-        # Between the collocation points the residual is not forced to zero: its size
-        # there (the defect) estimates the discretisation error. Check points: midpoints
-        # between consecutive Gauss points and breakpoints.
         nodes = np.concatenate([[-1.0], np.polynomial.legendre.leggauss(disc.k)[0], [1.0]])
         mids = 0.5 * (nodes[1:] + nodes[:-1])
         self.S_check = (b[:-1, None] + 0.5 * np.diff(b)[:, None] * (mids[None, :] + 1.0)).ravel()
-        self.E_check = sp.vstack([disc.evaluation_matrix(self.S_check, i, nu)
-                                  for i, m in enumerate(disc.problem.orders) for nu in range(m + 1)]).tocsr()
-        # Jets at the mesh points, where Gauss collocation is superconvergent (O(h^2k)):
-        # the torque is read there.
-        self.E_mesh = sp.vstack([disc.evaluation_matrix(b, i, nu)
-                                 for i, m in enumerate(disc.problem.orders) for nu in range(m + 1)]).tocsr()
-        self.E1 = disc.evaluation_matrix(S, 0, 1)
-        self.E2 = disc.evaluation_matrix(S, 1, 1)
-        self.F1 = disc.evaluation_matrix(S, 0, 0)
-        self.F2 = disc.evaluation_matrix(S, 1, 0)
+        nz = disc.problem.jet_size
+        self.n_samples, self.n_mesh, self.n_check = S.size, b.size, self.S_check.size
+        # one jet matrix for all points, then the rows each output reads
+        pts = np.concatenate([S, b, self.S_check])
+        npts = pts.size
+        Z = disc.jet_matrix(pts)
+        rows = [Jet.D1[0] * npts + np.arange(S.size), Jet.D2[0] * npts + np.arange(S.size),
+                Jet.D1[1] * npts + np.arange(S.size), Jet.D2[1] * npts + np.arange(S.size)]
+        for lo, n in ((S.size, b.size), (S.size + b.size, self.S_check.size)):
+            rows.append((np.arange(nz)[:, None] * npts + lo + np.arange(n)[None, :]).ravel())
+        self.E = Z[np.concatenate(rows)]
+        self.nz = nz
+
+    def _split(self, x):
+        v = self.E @ x
+        ns, nm = self.n_samples, self.n_mesh
+        D1, D2, D1p, D2p = v[:ns], v[ns:2 * ns], v[2 * ns:3 * ns], v[3 * ns:4 * ns]
+        o = 4 * ns
+        zm = v[o:o + self.nz * nm].reshape(self.nz, nm)
+        zc = v[o + self.nz * nm:].reshape(self.nz, self.n_check)
+        return D1, D2, D1p, D2p, zm, zc
 
     def __call__(self, x, p):
         model, disc = self.model, self.disc
@@ -357,41 +404,32 @@ class _Outputs:
         L = model.rod.L
         l = disc.integrate(n)
         l0 = disc.integrate(n / alpha)
-        # alignment d3 . K3 on a fine grid (straight reference: K3 constant)
-        d1p, d2p = self.E1 @ x, self.E2 @ x
+        D1, D2, d1p, d2p, zm, zc = self._split(x)
+        # alignment d3 . K3 on the sample grid (straight reference: K3 constant)
         align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
-        D1, D2 = self.F1 @ x, self.F2 @ x
-        zm = (self.E_mesh @ x).reshape(z.shape[0], -1)
         m_mesh = model._axial_quantities(self.disc.breakpoints, zm, p)[0]
+        G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
         return dict(stretch=(l - L) / L, torque=float(np.mean(m_mesh)), l=l, l0=l0,
-                    defect=self.defect(x, p, z),
+                    alpha_min=float(np.min(alpha)),
+                    defect=float(np.max(G / self._scales(p, z))),
                     min_alignment=float(np.min(align)),
                     helical_waves=helical_waves(self.S, D1, D2, d1p, d2p),
                     torque_spread=float(np.ptp(m_mesh)))
 
-
     def interval_defect(self, x, p) -> np.ndarray:
         """The relative defect of :meth:`defect`, its maximum on each subinterval."""
         z = self.disc.jets(x)
-        zc = (self.E_check @ x).reshape(z.shape[0], -1)
+        zc = self._split(x)[5]
         G = np.abs(self.model.residual(self.S_check, zc, p)) / self._scales(p, z)[:, None]
         return G.max(axis=0).reshape(self.disc.N, -1).max(axis=1)
 
     def _scales(self, p, z):
+        """Scales: force equations ``max(w, |F|/L, EI/L^3)``, moment equations
+        ``max(|F|, EI/L^2)``, torque equation ``max(|phi_L|, 1)/L^2``."""
         L, w, EI = self.model.rod.L, p[2], p[3]
-        Fmax = float(np.sqrt((z[[11, 13, 15]] ** 2).sum(axis=0)).max())
+        Fmax = float(np.sqrt((z[Jet.F] ** 2).sum(axis=0)).max())
         return np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
                         + [max(abs(p[0]), 1.0) / L**2])
-
-    def defect(self, x, p, z) -> float:
-        """Max residual between collocation points, each equation relative to its scale.
-
-        Scales: force equations ``max(w, |F|/L, EI/L^3)``, moment equations
-        ``max(|F|, EI/L^2)``, torque equation ``max(|phi_L|, 1)/L^2``.
-        """
-        zc = (self.E_check @ x).reshape(z.shape[0], -1)
-        G = np.abs(self.model.residual(self.S_check, zc, p)).max(axis=1)
-        return float(np.max(G / self._scales(p, z)))
 
 
 def helical_waves(S, D1, D2, D1p, D2p) -> int:

@@ -1,0 +1,1 @@
+"""Drivers: each runs the generic solvers on the rod for one job (solve, trace, fold curve, diagram, sweep)."""

@@ -1,0 +1,476 @@
+"""Whole response diagrams: every branch in a window of ``phi_L``, every fold, every new helical wave.
+
+1. **Critical twists** (:func:`critical_twists`): the weightless straight rod
+   under the same tension is an exact solution for every ``phi_L``, and the
+   tangent operator along it is affine in ``phi_L`` (``J(Phi) = A + Phi B``:
+   the twist enters only through the torque ``m = GJ alpha Phi / L``), so the
+   twists where it is singular are the real eigenvalues of the pencil
+   ``A + Phi B``: found on a coarse mesh by a dense generalised eigensolver,
+   refined on a fine one by inverse iteration. Each is a double root (a
+   circle of helical modes, O(2) symmetry) and is listed once.
+2. **Seeds**: the primary branch from the planar sag at ``Phi = 0``, and one
+   start per interval between consecutive critical twists, at its midpoint,
+   reached from the exact weightless straight state by a homotopy in the
+   weight (:func:`rodcont.drivers.trace.straight_seed`).
+3. **Branches**: each seed traced both ways to its guards (the trace driver:
+   adaptive mesh, validity and accuracy guards, located folds), with a forced
+   point at every seed's ``Phi``. A seed whose solution equals a point of an
+   already traced branch at that ``Phi`` (compared on a common grid of ``S``)
+   lies on it and is not traced again; two traced branches that share a
+   solution are one, kept once.
+4. **Deflation** (optional, :func:`deflate`): deflated Newton (Farrell,
+   Birkisson & Funke 2015) at chosen ``Phi`` finds solutions that are none of
+   the known ones; each new one is traced both ways like a seed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..branch import Branch
+from ..continuation import Kind, Point
+from ..linalg import LU, SingularMatrix, max_norm
+from ..rod import RodParameters
+from ..system import RodSystem, check_number
+from .solve import check_tension
+from .trace import Recorder, TraceError, TraceOptions, _mesh_group, file_meta, run, straight_seed
+
+
+# --------------------------------------------------------------------------
+# Critical twists
+# --------------------------------------------------------------------------
+def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: float = 40.0, phi_min: float = 0.0,
+                    k: int = 5, N_fine: int = 60) -> list[float]:
+    """Twists ``Phi_n`` in ``(phi_min, phi_max]`` where the straight weightless rod under tension ``T`` buckles.
+
+    From the tangent operator of the discretised rod along the exact straight
+    state (the rod's stiffnesses, its weight set to 0). Coarse roots: the real
+    finite eigenvalues of the pencil ``(A, -B)`` on ``N = max(8, phi_max/4)``
+    subintervals; each refined by inverse iteration with the shift at the
+    coarse value on ``N_fine`` subintervals, to about 1e-12 relative.
+    """
+    rod = rod or RodParameters()
+    T = check_number("T", T)
+    phi_max, phi_min = check_number("phi_max", phi_max), check_number("phi_min", phi_min)
+    if not phi_min < phi_max:
+        raise ValueError("phi_min must be below phi_max")
+    if phi_max > 1e4:
+        raise ValueError("phi_max above 1e4 rad would need a mesh of millions of points")
+    weightless = RodParameters(EI=rod.EI, GJ=rod.GJ, EA=rod.EA, w=0.0, L=rod.L,
+                               weight_direction=rod.weight_direction)
+    check_tension(weightless, T)
+    import scipy.linalg as sl
+    N0 = max(8, int(math.ceil(max(abs(phi_max), abs(phi_min)) / 4)))
+    coarse = _pencil(weightless, T, N0, k)
+    A, B = (M.toarray() for M in coarse)
+    with np.errstate(all="ignore"):
+        ev = sl.eigvals(A, -B)
+    ev = ev[np.isfinite(ev)]
+    ev = np.sort(ev[np.abs(ev.imag) <= 1e-6 * (1 + np.abs(ev))].real)
+    ev = ev[(ev > phi_min - 1.0) & (ev < phi_max + 1.0)]
+    roots = []
+    for v in ev:  # O(2): each root twice; keep one per cluster
+        if not roots or abs(v - roots[-1]) > 1e-5 * (1 + abs(v)):
+            roots.append(v)
+    Af, Bf = _pencil(weightless, T, max(N_fine, 2 * N0), k)
+    out = []
+    for r in roots:
+        phi = _refine(Af, Bf, float(r))
+        if phi_min < phi <= phi_max:
+            out.append(phi)
+    return sorted(out)
+
+
+def _pencil(rod: RodParameters, T: float, N: int, k: int):
+    """``A, B`` with ``J(Phi) = A + Phi B`` along the straight state (exact: the residual is affine in Phi there)."""
+    s = RodSystem(rod, T=T, N=N, k=k)
+    J0 = s.disc.linearise(s.straight_state(0.0), s.params(0.0))[1]
+    J1 = s.disc.linearise(s.straight_state(1.0), s.params(1.0))[1]
+    return J0, (J1 - J0).tocsc()
+
+
+def _refine(A, B, phi: float, iterations: int = 8) -> float:
+    """Inverse iteration on ``(A + sigma B)^{-1} B`` (eigenvalue ``1/(sigma - Phi)``), shift kept at ``phi``."""
+    try:
+        lu = LU((A + phi * B).tocsc())
+    except SingularMatrix:
+        return phi
+    rng = np.random.default_rng(11)
+    v = rng.standard_normal(A.shape[0])
+    est = phi
+    for _ in range(iterations):
+        y = lu.solve(B @ v)
+        mu = float(v @ y) / float(v @ v)
+        if not math.isfinite(mu) or mu == 0:
+            break
+        new = phi - 1.0 / mu
+        v = y / np.linalg.norm(y)
+        if abs(new - est) <= 1e-13 * (1 + abs(new)):
+            est = new
+            break
+        est = new
+    return est
+
+
+# --------------------------------------------------------------------------
+# Comparing solutions on different meshes
+# --------------------------------------------------------------------------
+def shape_signature(system: RodSystem, x: np.ndarray, n: int = 200) -> np.ndarray:
+    """``Delta1, Delta2`` and ``phi'`` on ``n`` points of ``[0, L]``: comparable across meshes."""
+    S = np.linspace(0.0, system.rod.L, n)
+    d = system.disc
+    return np.concatenate([d.evaluate(x, S, 0), d.evaluate(x, S, 1), d.evaluate(x, S, 2, 1) * system.rod.L / 10])
+
+
+def same_solution(a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> bool:
+    return max_norm(a - b) <= tol * (1.0 + max(max_norm(a), max_norm(b)))
+
+
+# --------------------------------------------------------------------------
+# Deflation
+# --------------------------------------------------------------------------
+def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesses: Sequence[np.ndarray],
+            power: float = 2.0, shift: float = 1.0, tol: float = 1e-10, max_iter: int = 60,
+            max_new: int = 10) -> list[np.ndarray]:
+    """Further solutions of ``F(x, phi_L) = 0`` on ``system``'s mesh, none of them in ``known``.
+
+    Deflated Newton (Farrell, Birkisson & Funke, SIAM J. Sci. Comput. 37, 2015):
+    Newton on ``G(x) = M(x) F(x)``, ``M(x) = prod_i (1 / |x - r_i|^power + shift)``,
+    whose Jacobian is ``M (J + F g^T)`` with ``g = grad log M``: the step is
+    ``-J^{-1} F / (1 + g . J^{-1} F)`` (one LU per iteration, as Newton's).
+    Each guess is tried against every known root and every root found so far;
+    the new roots (converged with plain Newton at the end) are returned.
+    """
+    roots = [np.asarray(r, float) for r in known]
+    found: list[np.ndarray] = []
+    p = system.params(phi_L) if system.param == "phi_L" else system.base
+    n = system.disc.size
+    for guess in guesses:
+        if len(found) >= max_new:
+            break
+        x = np.asarray(guess, float).copy()
+        ok = False
+        for _ in range(max_iter):
+            F, J, _ = system.disc.linearise(x, p)
+            if not np.all(np.isfinite(F)):
+                break
+            try:
+                dx0 = LU(J).solve(-F)
+            except SingularMatrix:
+                break
+            g = np.zeros(n)
+            for r in roots:
+                d = x - r
+                nd2 = float(d @ d) / n
+                m = nd2 ** (-power / 2) + shift
+                # d/dx log(|d|^-p + shift) = -p |d|^(-p-2) d / n / (|d|^-p + shift)
+                g += -power * nd2 ** (-power / 2 - 1) * d / n / m
+            denom = 1.0 - float(g @ dx0)  # 1 + g . J^{-1} F with J^{-1} F = -dx0
+            if not math.isfinite(denom) or abs(denom) < 1e-14:
+                break
+            dx = dx0 / denom
+            x = x + dx
+            if max_norm(dx0) <= tol * (1 + max_norm(x)):
+                ok = True
+                break
+        if not ok:
+            continue
+        r = system.disc.newton(x, p, tol=tol)
+        if not r.converged:
+            continue
+        if any(max_norm(r.x - q) <= 1e-6 * (1 + max_norm(q)) for q in roots):
+            continue
+        roots.append(r.x)
+        found.append(r.x)
+    return found
+
+
+# --------------------------------------------------------------------------
+# The diagram
+# --------------------------------------------------------------------------
+@dataclass
+class DiagramBranch:
+    branch: Branch
+    origin: str
+    ends: tuple = ("", "")        # why it ends at its first and at its last point
+    seed_phi: float = math.nan
+    time: float = 0.0
+
+
+@dataclass
+class Diagram:
+    gamma: float
+    T: float
+    rod: RodParameters
+    critical: list
+    branches: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)   # (origin, reason) of seeds not traced
+    elapsed: float = 0.0
+
+    @property
+    def folds(self) -> list[dict]:
+        """Every fold of every branch, sorted by phi_L, with its branch number."""
+        out = []
+        for j, db in enumerate(self.branches):
+            for f in db.branch.folds:
+                out.append(dict(f, branch=j))
+        return sorted(out, key=lambda f: f["phi_L"])
+
+
+def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
+            T: float | None = None, out: str | None = None, overwrite: bool = False,
+            deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
+            progress: Callable[[str], None] | None = None, **options) -> Diagram:
+    """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``) in ``[phi_min, phi_max]``.
+
+    ``options``: the fields of :class:`rodcont.drivers.trace.TraceOptions`,
+    applied to every branch. ``deflate_at``: values of ``phi_L`` where
+    deflated Newton looks for solutions the seeds missed. ``progress`` gets one
+    line per branch as it is done.
+    """
+    try:
+        opts = TraceOptions(**options)
+    except TypeError as exc:
+        raise TypeError(str(exc).replace("TraceOptions.__init__()", "diagram()")) from None
+    rod = rod or RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    if T is None:
+        if gamma is None:
+            raise ValueError("give gamma (T = gamma w L) or T")
+        gamma = check_number("gamma", gamma)
+        if rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
+        T = rod.tension(gamma)
+    T = check_number("T", T)
+    check_tension(rod, T)
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    deflate_at = tuple(check_number("deflate", v) for v in deflate_at)
+    t_start = time.perf_counter()
+    crit = critical_twists(rod, T, phi_max=opts.phi_max, phi_min=0.0, k=k)
+    seeds = [0.5 * (a + b) for a, b in zip(crit[:-1], crit[1:])]
+    seeds = [s for s in seeds if opts.phi_min < s < opts.phi_max]
+    forced = tuple(sorted(set(opts.forced) | set(seeds) | set(deflate_at)))
+    bopts = TraceOptions(**dict(opts.as_dict(), forced=forced))
+    dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit)
+    writer = None
+    if out is not None:
+        from ..branchfile import BranchWriter, check_output
+        check_output(out, overwrite=overwrite)
+        probe = RodSystem(rod, T=T, N=N, k=k)
+        meta = file_meta(rod, T, N, k, "phi_L", opts, probe, dict(kind="diagram", critical_twists=np.asarray(crit),
+                                                                   seeds=np.asarray(seeds),
+                                                                   deflate_at=np.asarray(deflate_at)))
+        writer = BranchWriter(out, meta)
+        _mesh_group(writer, probe)
+
+    def note(msg):
+        if progress is not None:
+            progress(msg)
+
+    try:
+        # the primary branch, from the planar sag
+        t0 = time.perf_counter()
+        system = RodSystem(rod, T=T, N=N, k=k)
+        x0 = system.model.initial_guess(system.disc, system.base[1])
+        db = _trace_both(system, x0, 0.0, bopts, "primary branch from the planar sag at phi_L = 0", writer, dg,
+                         callback, both=False)
+        db.time = time.perf_counter() - t0
+        dg.branches.append(db)
+        note(_line(len(dg.branches) - 1, db))
+        # one seed per interval between critical twists
+        for j, phi in enumerate(seeds):
+            origin = (f"seed at phi_L = {phi:.6g}, between the critical twists {crit[j]:.6g} and "
+                      f"{crit[j + 1]:.6g}")
+            t0 = time.perf_counter()
+            try:
+                sysw, xs = straight_seed(rod, T, phi, N, k)
+            except TraceError as exc:
+                dg.skipped.append((origin, str(exc)))
+                note(f"  skipped {origin}: {exc}")
+                continue
+            system = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints)
+            on = _on_known_branch(dg, system, xs, phi)
+            if on is not None:
+                dg.skipped.append((origin, f"lies on branch {on}"))
+                note(f"  {origin}: lies on branch {on}, not traced again")
+                continue
+            db = _trace_both(system, xs, phi, bopts, origin, writer, dg, callback)
+            db.seed_phi, db.time = phi, time.perf_counter() - t0
+            dg.branches.append(db)
+            note(_line(len(dg.branches) - 1, db))
+        # deflation
+        for phi in deflate_at:
+            t0 = time.perf_counter()
+            new = _deflated_starts(dg, rod, T, phi, N, k, opts)
+            for system, x in new:
+                origin = f"deflated Newton at phi_L = {phi:.6g}"
+                on = _on_known_branch(dg, system, x, phi)
+                if on is not None:
+                    continue
+                try:
+                    db = _trace_both(system, x, phi, bopts, origin, writer, dg, callback)
+                except TraceError as exc:
+                    dg.skipped.append((origin, str(exc)))
+                    continue
+                db.seed_phi, db.time = phi, time.perf_counter() - t0
+                dg.branches.append(db)
+                note(_line(len(dg.branches) - 1, db))
+        _drop_duplicates(dg, writer)
+    finally:
+        dg.elapsed = time.perf_counter() - t_start
+        if writer is not None:
+            _write_folds(writer, dg)
+            writer.close(f"{len(dg.branches)} branches")
+    return dg
+
+
+def _line(j: int, db: DiagramBranch) -> str:
+    b = db.branch
+    return (f"  branch {j}: {len(b)} points, {len(b.folds)} fold(s), {db.time:.2f} s  ({db.origin}); "
+            f"ends: {db.ends[0] or '-'} | {db.ends[1] or '-'}")
+
+
+def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: str, writer, dg: Diagram,
+                callback, both: bool = True) -> DiagramBranch:
+    """Trace from a seed down, then up; the branch runs from its lower end through the seed."""
+    rod = system.rod
+    j = len(dg.branches)
+    down = None
+    if both:
+        down = Branch(gamma=dg.gamma, rod=rod, N=system.disc.N, k=system.disc.k)
+        run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=-1)), branch=down)
+    branch = Branch(gamma=dg.gamma, rod=rod, N=system.disc.N, k=system.disc.k)
+    group = None
+    if writer is not None:
+        group = writer.group(f"branches/{j}", attrs=dict(origin=origin))
+    rec = Recorder(branch, writer, group)
+    if down is not None and len(down) > 1:
+        rev = down.reversed()
+        # the reversed lower part, then the upper part traced from the seed again
+        for i in range(len(rev) - 1):
+            pt = Point(x=rev.coefficients[i], p=rev.table["phi_L"][i], tx=rev.tangents[i][:-1],
+                       tp=float(rev.tangents[i][-1]), arclength=rev.table["arclength"][i],
+                       kind=rev.table["kind"][i] if rev.table["kind"][i] != Kind.START else Kind.REGULAR,
+                       located=rev.table["located"][i],
+                       data={name: rev.table[name][i] for name in rev.table})
+            rec.add(pt, rev.meshes[i])
+    up_opts = TraceOptions(**dict(opts.as_dict(), direction=1))
+    run(system, x0, phi0, up_opts, branch=branch, recorder=rec, callback=callback)
+    end_low = down.stop_reason if down is not None else "start of the trace at phi_L = 0"
+    ends = (end_low, branch.stop_reason)
+    if writer is not None:
+        writer.set_attr("stop_reason_first", ends[0], f"branches/{j}")
+        writer.set_attr("stop_reason", ends[1], f"branches/{j}")
+        rec.sync()
+        writer.flush()
+    return DiagramBranch(branch, origin, ends)
+
+
+def _signature_at(db: DiagramBranch, phi: float, rod, T, k):
+    """Signatures of the branch's points at exactly ``phi`` (its forced points)."""
+    b = db.branch
+    out = []
+    for i, (p, kind) in enumerate(zip(b.table["phi_L"], b.table["kind"])):
+        if abs(p - phi) <= 1e-9 * (1 + abs(phi)):
+            s = RodSystem(rod, T=T, N=b.meshes[i].size - 1, k=k, breakpoints=b.meshes[i])
+            out.append(shape_signature(s, b.coefficients[i]))
+    return out
+
+
+def _on_known_branch(dg: Diagram, system: RodSystem, x, phi: float):
+    sig = shape_signature(system, x)
+    for j, db in enumerate(dg.branches):
+        for other in _signature_at(db, phi, dg.rod, dg.T, system.disc.k):
+            if same_solution(sig, other):
+                return j
+    return None
+
+
+def _drop_duplicates(dg: Diagram, writer) -> None:
+    """Two branches that share a solution at a forced ``phi_L`` are one: keep the longer."""
+    forced = sorted({p for db in dg.branches for p, kd in zip(db.branch.table["phi_L"], db.branch.table["kind"])
+                     if kd == Kind.FORCED})
+    drop = set()
+    k = dg.branches[0].branch.k if dg.branches else 5
+    for i in range(len(dg.branches)):
+        for j in range(i + 1, len(dg.branches)):
+            if i in drop or j in drop:
+                continue
+            for phi in forced:
+                a = _signature_at(dg.branches[i], phi, dg.rod, dg.T, k)
+                b = _signature_at(dg.branches[j], phi, dg.rod, dg.T, k)
+                if any(same_solution(u, v) for u in a for v in b):
+                    drop.add(j if len(dg.branches[j].branch) <= len(dg.branches[i].branch) else i)
+                    break
+    if drop:
+        keep = [db for q, db in enumerate(dg.branches) if q not in drop]
+        for q in sorted(drop):
+            dg.skipped.append((dg.branches[q].origin, "the same branch as another one (dropped)"))
+        dg.branches = keep
+        if writer is not None:
+            _rewrite_groups(writer, dg)
+
+
+def _rewrite_groups(writer, dg: Diagram) -> None:
+    """Renumber the branch groups after dropping duplicates (the file is rebuilt in memory)."""
+    if "branches" in writer.f:
+        del writer.f["branches"]
+    writer.groups = {k_: v for k_, v in writer.groups.items() if not k_.startswith("branches/")}
+    for j, db in enumerate(dg.branches):
+        group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin))
+        rec = Recorder(Branch(gamma=dg.gamma, rod=dg.rod, N=db.branch.N, k=db.branch.k), writer, group)
+        b = db.branch
+        for i in range(len(b)):
+            pt = Point(x=b.coefficients[i], p=b.table["phi_L"][i], tx=b.tangents[i][:-1], tp=float(b.tangents[i][-1]),
+                       arclength=b.table["arclength"][i], kind=b.table["kind"][i], located=b.table["located"][i],
+                       data={name: b.table[name][i] for name in b.table})
+            rec.add(pt, b.meshes[i])
+        writer.set_attr("stop_reason_first", db.ends[0], f"branches/{j}")
+        writer.set_attr("stop_reason", db.ends[1], f"branches/{j}")
+        rec.sync()
+
+
+def _write_folds(writer, dg: Diagram) -> None:
+    if writer.points == 0:
+        return
+    if "folds" in writer.f:
+        del writer.f["folds"]
+    fo = writer.f.create_group("folds")
+    folds = dg.folds
+    cols = ("branch", "phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located")
+    for name in cols:
+        dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
+        fo.create_dataset(name, data=np.array([f[name] for f in folds], dtype=dt).reshape(-1))
+    writer.set_attr("skipped", json.dumps([list(s) for s in dg.skipped]))
+
+
+def _deflated_starts(dg: Diagram, rod, T, phi: float, N: int, k: int, opts: TraceOptions):
+    """New solutions at ``phi`` by deflation from the known ones (on a uniform mesh of max(2N, 30))."""
+    Nd = max(2 * N, 30)
+    system = RodSystem(rod, T=T, N=Nd, k=k)
+    known = []
+    for db in dg.branches:
+        b = db.branch
+        for i, p in enumerate(b.table["phi_L"]):
+            if abs(p - phi) <= 1e-9 * (1 + abs(phi)):
+                src = RodSystem(rod, T=T, N=b.meshes[i].size - 1, k=k, breakpoints=b.meshes[i])
+                known.append(system.disc.transfer(b.coefficients[i], src.disc))
+    guesses = list(known)
+    guesses.append(system.straight_state(phi))
+    guesses.append(system.model.initial_guess(system.disc, T))
+    with np.errstate(all="ignore"):
+        found = deflate(system, phi, known, guesses)
+    out = []
+    for x in found:
+        o = system.outputs(x, phi)
+        if o["min_alignment"] > opts.min_alignment and o.get("alpha_min", 1.0) > 0:
+            out.append((system, x))
+    return out

@@ -1,0 +1,108 @@
+"""One equilibrium by natural loading: ``phi_L`` raised from 0 in steps, Newton at each.
+
+Natural continuation cannot pass a fold in ``phi_L``: beyond the first fold it
+reports non-convergence (:class:`ConvergenceError`) and says where it stopped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..linalg import NewtonResult
+from ..rod import RodParameters
+from ..system import RodSystem, check_number
+
+
+class ConvergenceError(RuntimeError):
+    pass
+
+
+def euler_tension(rod: RodParameters) -> float:
+    """Tension at which the untwisted clamped rod buckles (Euler, extensible, self-feeding):
+    ``tau = T L^2 / (EI (1 + T/EA)) = -4 pi^2``."""
+    c = 4 * math.pi**2 * rod.EI / rod.L**2
+    return -c / (1.0 + c / rod.EA)
+
+
+def check_tension(rod: RodParameters, T: float, what: str = "the tension") -> None:
+    """Refuse a tension at or below the Euler load (the untwisted start is not unique there)."""
+    TE = euler_tension(rod)
+    if not T > TE:
+        lim = f" (Gamma = {TE / (rod.w * rod.L):.6g})" if rod.w > 0 else ""
+        raise ValueError(f"{what} T = {T:.6g} is at or below the Euler buckling load of the clamped rod, "
+                         f"T = {TE:.6g}{lim}: the untwisted start is not unique")
+
+
+def check_physical(outputs: dict, where: str) -> None:
+    """A solution with a non-positive stretch factor or unstressed length is not a rod."""
+    if not (outputs.get("l0", 1.0) > 0 and outputs.get("alpha_min", 1.0) > 0):
+        raise ConvergenceError(f"{where}: the solution has a non-positive unstressed length or stretch "
+                               f"factor (the rod would be compressed through zero length): not physical")
+
+
+@dataclass
+class Equilibrium:
+    """One solved equilibrium: its outputs, the unknown vector and how Newton ended."""
+
+    outputs: dict
+    x: np.ndarray
+    system: RodSystem
+    newton: NewtonResult
+
+    @property
+    def converged(self) -> bool:
+        return self.newton.converged
+
+    def centreline(self, S=None):
+        S = np.linspace(0, self.system.rod.L, 201) if S is None else S
+        return self.system.model.centreline(self.system.disc, self.x, S)
+
+
+def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
+                      load_step: float = 0.5, tol: float = 1e-10) -> Equilibrium:
+    """Equilibrium at ``(gamma, phi_L)`` reached by loading ``phi_L`` up from 0 in steps.
+
+    A step that fails is halved (down to ``load_step / 1024``).
+    """
+    if rod is None:
+        rod = RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    gamma = check_number("gamma", gamma)
+    phi_L = check_number("phi_L", phi_L)
+    load_step = check_number("load_step", load_step, positive=True)
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    tol = check_number("tol", tol, positive=True)
+    if abs(phi_L) / load_step > 1e5:
+        raise ValueError(f"load_step = {load_step:g} would take more than 1e5 steps to reach phi_L = {phi_L:g}")
+    T = rod.tension(gamma)
+    if not math.isfinite(T):
+        raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
+    check_tension(rod, T)
+    sysm = RodSystem(rod, gamma, N, k)
+    with np.errstate(all="ignore"):
+        x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
+        r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)
+        if not r.converged:
+            raise ConvergenceError(f"no equilibrium found at phi_L = 0 (Gamma = {gamma:g}): {r.message}")
+        x, done, step = r.x, 0.0, math.copysign(load_step, phi_L) if phi_L else load_step
+        while done != phi_L:
+            target = done + step
+            if (target - phi_L) * math.copysign(1.0, step) > 0:
+                target = phi_L
+            r = sysm.disc.newton(x, sysm.params(target), tol=tol)
+            if r.converged:
+                x, done = r.x, target
+            else:
+                step *= 0.5
+                if abs(step) < load_step / 1024:
+                    raise ConvergenceError(f"loading stopped at phi_L = {done:.10g} (a fold of the branch is "
+                                           f"likely just beyond; use 'rodcont trace'): {r.message}")
+        out = sysm.outputs(x, phi_L)
+    out["alpha_min"] = sysm.model.stretch_factor_min(sysm.disc, x, sysm.params(phi_L))
+    check_physical(out, f"Gamma = {gamma:g}, phi_L = {phi_L:g}")
+    return Equilibrium(out, x, sysm, r)

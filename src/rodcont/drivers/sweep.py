@@ -1,0 +1,172 @@
+"""Families of branches (Figure 2): one trace (or one diagram) per Gamma, in parallel.
+
+Each Gamma is an independent job ``trace_to_file(gamma, path, rod, ...)``
+(a plain, picklable top-level function) submitted to any
+``concurrent.futures``-compatible executor: the default is a local
+``ProcessPoolExecutor`` with one process per core; a Dask
+``client.get_executor()`` or a Ray/MPI pool executor plugs in unchanged, with
+the files written where the workers can see ``out_dir``. A Gamma that fails is
+reported with its reason; the others finish.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from concurrent.futures import Executor, ProcessPoolExecutor
+
+from ..rod import RodParameters
+from ..system import check_number
+
+
+def gamma_name(gamma: float) -> str:
+    """A file-name form of Gamma that reads back exactly: ``repr`` without a trailing ``.0``."""
+    s = repr(float(gamma))
+    return s[:-2] if s.endswith(".0") else s
+
+
+def branch_path(out_dir: str, gamma: float, diagram: bool = False) -> str:
+    return os.path.join(out_dir, f"{'diagram' if diagram else 'gamma'}_{gamma_name(gamma)}.h5")
+
+
+def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool = False, **options) -> dict:
+    """Trace one branch (or, with ``diagram``, the whole diagram) into ``path``; returns a summary.
+
+    ``queue`` (optional) receives ``(gamma, n_points, phi_L, stretch)`` after every point.
+    A failure is returned as a summary with ``error`` set, not raised.
+    """
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    n = [0]
+
+    def report(pt):
+        n[0] += 1
+        if queue is not None:
+            queue.put((gamma, n[0], pt.data["phi_L"], pt.data["stretch"]))
+
+    t0 = time.perf_counter()
+    try:
+        if diagram:
+            from .diagram import diagram as run_diagram
+            d = run_diagram(gamma, RodParameters(**rod), out=path, callback=report, **options)
+            folds = d.folds
+            return dict(gamma=gamma, path=path, points=sum(len(b) for b in d.branches), branches=len(d.branches),
+                        folds=len(folds), first_fold=folds[0]["phi_L"] if folds else None,
+                        stop_reason=f"{len(d.branches)} branches", elapsed=time.perf_counter() - t0, error=None)
+        from .trace import trace
+        br = trace(gamma, RodParameters(**rod), out=path, callback=report, **options)
+        folds = br.folds
+        return dict(gamma=gamma, path=path, points=len(br), folds=len(folds), branches=1,
+                    first_fold=folds[0]["phi_L"] if folds else None, stop_reason=br.stop_reason,
+                    elapsed=time.perf_counter() - t0, error=None)
+    except Exception as exc:  # noqa: BLE001 - one failing Gamma is reported, the others go on
+        return dict(gamma=gamma, path=path, points=0, folds=0, branches=0, first_fold=None,
+                    stop_reason=f"failed: {exc}", elapsed=time.perf_counter() - t0, error=str(exc))
+
+
+def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k: int = 5, jobs: int | None = None,
+          executor: Executor | None = None, progress: bool = False, plot: bool = True, diagram: bool = False,
+          overwrite: bool = False, **options) -> dict:
+    """Trace one branch (or diagram) per Gamma into ``out_dir`` and draw the combined response diagram.
+
+    ``executor``: any ``concurrent.futures.Executor`` (default: a process pool of
+    ``jobs`` workers, all cores if None). ``options`` go to :func:`rodcont.trace`.
+    Returns ``{"branches": [summary per Gamma, in the order given], "diagram": path, "jobs": n}``.
+    """
+    gammas = list(gammas) if isinstance(gammas, (list, tuple)) else gammas
+    if not isinstance(gammas, list) or not gammas:
+        raise ValueError("sweep needs at least one Gamma")
+    gammas = [check_number("gamma", g) for g in gammas]
+    names = [gamma_name(g) for g in gammas]
+    if len(set(names)) != len(names):
+        raise ValueError("Gamma values must be distinct")
+    if jobs is not None:
+        jobs = check_number("jobs", jobs, integer=True)
+        if jobs < 1:
+            raise ValueError(f"jobs must be >= 1, got {jobs}")
+    rod = rod or RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    from .trace import TraceOptions
+    TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate",)}) if not diagram else None
+    from ..branchfile import check_output
+    os.makedirs(out_dir, exist_ok=True)
+    paths = [branch_path(out_dir, g, diagram) for g in gammas]
+    for p in paths:
+        check_output(p, overwrite=overwrite)
+    rod_d = rod.as_dict()
+    own = executor is None
+    jobs = jobs or os.cpu_count() or 1
+    queue = manager = None
+    if own:
+        executor = ProcessPoolExecutor(max_workers=min(jobs, len(gammas)))
+        if progress:
+            import multiprocessing
+            manager = multiprocessing.Manager()
+            queue = manager.Queue()
+    display = _Progress(gammas, progress)
+    results = {}
+    try:
+        futures = {executor.submit(trace_to_file, g, p, rod_d, queue, diagram, N=N, k=k, overwrite=overwrite,
+                                   **options): g for g, p in zip(gammas, paths)}
+        pending = set(futures)
+        while pending:
+            done = {f for f in pending if f.done()}
+            for f in done:
+                g = futures[f]
+                results[g] = f.result()
+                display.finish(g, results[g])
+            pending -= done
+            if queue is not None:
+                while not queue.empty():
+                    display.update(*queue.get_nowait())
+            if pending:
+                time.sleep(0.1)
+            display.draw()
+    finally:
+        if own:
+            executor.shutdown(wait=True, cancel_futures=True)
+        if manager is not None:
+            manager.shutdown()
+    out = dict(branches=[results[g] for g in gammas], jobs=jobs if own else None, diagram=None)
+    ok = [r["path"] for r in out["branches"] if r["error"] is None and os.path.exists(r["path"])]
+    if plot and ok:
+        from ..branchfile import load_diagram
+        from ..plots import response_diagram
+        path = os.path.join(out_dir, "response_diagram.png")
+        response_diagram([load_diagram(p) for p in ok], path)
+        out["diagram"] = path
+    return out
+
+
+class _Progress:
+    """One line per Gamma: rewritten in place on a terminal; otherwise one final line per Gamma."""
+
+    def __init__(self, gammas, enabled: bool):
+        self.enabled = enabled
+        self.tty = enabled and sys.stderr.isatty()
+        self.lines = {g: "queued" for g in gammas}
+        self.drawn = False
+        self.last = 0.0
+
+    def update(self, g, n, phi, stretch):
+        self.lines[g] = f"{n:5d} points  Phi {phi:9.4f}  stretch {stretch:9.5f}"
+
+    def finish(self, g, r):
+        self.lines[g] = (f"done: {r['points']} points, {r['folds']} folds, {r['elapsed']:.1f} s; {r['stop_reason']}")
+        if self.enabled and not self.tty:
+            sys.stderr.write(f"  Gamma {g:8g}: {self.lines[g]}\n")
+            sys.stderr.flush()
+
+    def draw(self):
+        if not self.tty or time.monotonic() - self.last < 0.2:
+            return
+        self.last = time.monotonic()
+        out = []
+        if self.drawn:
+            out.append("\x1b[%dA" % len(self.lines))
+        for g, line in self.lines.items():
+            out.append(f"  Gamma {g:8g}: {line}"[:200] + "\x1b[K\n")
+        sys.stderr.write("".join(out))
+        sys.stderr.flush()
+        self.drawn = True

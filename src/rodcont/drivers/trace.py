@@ -1,0 +1,552 @@
+"""Trace one branch of the rod: in ``phi_L`` (the end rotation) or in any rod parameter.
+
+The driver runs the generic tracker in *segments*: a segment is one mesh. It
+watches the estimated error of every point (:class:`Accuracy`); when the error
+grows past ``max_error / 100`` the mesh is rebuilt for the solution
+(:func:`rodcont.mesh.adapted_mesh`: more or fewer subintervals, placed where
+the residual concentrates), the last point and its tangent are carried over,
+and a new segment starts there. A point whose error exceeds ``max_error`` is
+never stored: the mesh is refined and the step retried, or, when the mesh
+may not grow (``adapt=False`` or ``N_max`` reached), the trace stops there
+(the accuracy guard). The validity guard (``min d3.K3 = min_alignment``: the
+rod about to fold back over the reference curve), ``stretch_max`` and the
+parameter bounds are located exactly by the tracker.
+
+Every guard and bound is also checked at the first point: a start already
+outside them is refused (``ValueError``), one on a bound and heading out of
+it stops at once.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, fields
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..branch import Branch
+from ..continuation import ContinuationSettings, Event, Kind, Point, Stop, StopContinuation, StopReason, Tracker
+from ..mesh import ErrorEstimator, adapted_mesh
+from ..rod import RodParameters
+from ..system import SYSTEM_PARAMS, RodSystem, check_number
+from .solve import check_tension
+
+
+class TraceError(ValueError):
+    """A trace that cannot start (the message says why, in one line)."""
+
+
+@dataclass
+class TraceOptions:
+    """Every knob of a trace, named once, with its default; checked when made.
+
+    ``max_error``: the accuracy guard, on the estimated error of the stored
+    outputs and centreline (relative; :class:`rodcont.mesh.ErrorEstimator`).
+    ``adapt``: rebuild the mesh when the error passes ``max_error / 100``
+    (up to ``N_max`` subintervals); ``False`` keeps the first mesh.
+    ``p_range``: bounds of the continued parameter when it is not ``phi_L``.
+    ``fold_error``: a fold whose estimated error is larger is located again on
+    a mesh refined for it (with ``adapt``).
+    """
+
+    phi_max: float = 40.0
+    phi_min: float = -1.0
+    stretch_max: float | None = None
+    min_alignment: float = 0.05
+    max_error: float = 1e-6
+    max_steps: int = 2000
+    ds: float = 0.1
+    ds_max: float = 0.5
+    ds_min: float = 1e-6
+    forced: Sequence[float] = ()
+    adapt: bool = True
+    N_max: int = 400
+    p_range: tuple | None = None
+    direction: int = 1
+    fold_error: float = 1e-9
+
+    def __post_init__(self):
+        for name in ("phi_max", "phi_min", "ds", "ds_max", "ds_min", "max_error", "min_alignment", "fold_error"):
+            setattr(self, name, check_number(name, getattr(self, name)))
+        self.max_steps = check_number("max_steps", self.max_steps, integer=True)
+        self.N_max = check_number("N_max", self.N_max, integer=True)
+        self.direction = check_number("direction", self.direction, integer=True)
+        if self.stretch_max is not None:
+            self.stretch_max = check_number("stretch_max", self.stretch_max)
+        if not isinstance(self.adapt, (bool, np.bool_)):
+            raise TypeError(f"adapt must be True or False, got {self.adapt!r}")
+        if not isinstance(self.forced, (list, tuple, np.ndarray)):
+            raise TypeError(f"forced must be a sequence of numbers, got {self.forced!r}")
+        self.forced = tuple(check_number("forced", v) for v in self.forced)
+        if self.p_range is not None:
+            if not isinstance(self.p_range, (list, tuple)) or len(self.p_range) != 2:
+                raise TypeError(f"p_range must be a pair (lo, hi), got {self.p_range!r}")
+            lo, hi = (check_number("range", v) for v in self.p_range)
+            if not lo < hi:
+                raise ValueError(f"the range must be given as A B with A < B, got {lo:g} {hi:g}")
+            self.p_range = (lo, hi)
+        checks = [
+            (self.phi_min < self.phi_max, "phi_min must be below phi_max"),
+            (0 <= self.min_alignment < 1, "min_alignment must be in [0, 1)"),
+            (self.max_error > 0, "max_error must be positive"),
+            (self.fold_error > 0, "fold_error must be positive"),
+            (self.max_steps >= 1, "max_steps must be >= 1"),
+            (self.N_max >= 1, "N_max must be >= 1"),
+            (self.direction in (1, -1), "direction must be +1 or -1"),
+            (0 < self.ds_min <= self.ds <= self.ds_max,
+             f"need 0 < ds_min <= ds <= ds_max, got {self.ds_min:g}, {self.ds:g}, {self.ds_max:g}"),
+        ]
+        for ok, msg in checks:
+            if not ok:
+                raise ValueError(msg)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+OPTION_NAMES = tuple(f.name for f in fields(TraceOptions))
+
+
+# --------------------------------------------------------------------------
+# Accuracy: estimated error of each point, measured where it matters
+# --------------------------------------------------------------------------
+class Accuracy:
+    """The estimated error of each point, cheap where it is small.
+
+    The full estimate (one Newton step on the halved mesh) costs a few steps;
+    between two of them the error is taken proportional to the defect (the
+    residual between collocation points, computed at every point anyway),
+    with the ratio of the last measurement. It is measured again at every
+    special point, whenever the defect has doubled (or fallen sixteenfold)
+    since, every ``every`` points, and whenever the proportional guess comes
+    within a quarter of the adaptation threshold.
+    """
+
+    def __init__(self, max_error: float, every: int = 25):
+        self.max_error = max_error
+        self.trigger = max_error / 10.0
+        self.every = every
+        self.estimators: dict = {}
+        self.ratio = None
+        self.defect = None
+        self.since = 0
+        self.measurements = 0
+
+    def reset(self) -> None:
+        self.ratio = self.defect = None
+
+    def estimator(self, system: RodSystem) -> ErrorEstimator:
+        key = id(system)
+        if key not in self.estimators:
+            if len(self.estimators) > 4:
+                self.estimators.clear()
+            self.estimators[key] = (system, ErrorEstimator(system))
+        return self.estimators[key][1]
+
+    def measure(self, system: RodSystem, pt: Point) -> float:
+        e = self.estimator(system).estimate(pt.x, pt.p, (pt.tx, pt.tp))
+        d = max(float(pt.data.get("defect", 0.0)), 1e-300)
+        self.ratio, self.defect, self.since = e / d, d, 0
+        self.measurements += 1
+        pt.data["error"] = e
+        return e
+
+    def __call__(self, system: RodSystem, pt: Point) -> float:
+        d = max(float(pt.data.get("defect", 0.0)), 1e-300)
+        self.since += 1
+        special = pt.kind not in (Kind.REGULAR,)
+        if (self.ratio is None or special or d > 2 * self.defect or d < self.defect / 16
+                or self.since >= self.every or self.ratio * d > self.trigger / 4):
+            return self.measure(system, pt)
+        e = self.ratio * d
+        pt.data["error"] = e
+        return e
+
+
+# --------------------------------------------------------------------------
+# Starts
+# --------------------------------------------------------------------------
+def straight_seed(rod: RodParameters, T: float, phi_L: float, N: int = 15, k: int = 5,
+                  breakpoints=None) -> tuple[RodSystem, np.ndarray]:
+    """A solution of the heavy rod near the straight twisted state at ``phi_L`` (and tension ``T``).
+
+    The weightless straight state is exact for every ``phi_L``; it is continued
+    in ``w`` from 0 to the rod's weight at fixed ``phi_L`` and ``T``
+    (pseudo-arclength, so a fold in ``w`` is passed; the homotopy must reach
+    the rod's weight without leaving the Eulerian domain). Raises
+    :class:`TraceError` when it cannot.
+    """
+    sysw = RodSystem(rod, T=T, N=N, k=k, param="w", phi_L=phi_L, breakpoints=breakpoints)
+    x0 = sysw.straight_state(phi_L)
+    if rod.w == 0:
+        return sysw, x0
+    s = ContinuationSettings(ds=0.2 * rod.w, ds_min=1e-9 * rod.w, ds_max=rod.w, p_min=-0.5 * rod.w, p_max=rod.w,
+                             max_steps=400, detect_branch_points=False, detect_fold_pairs=False)
+    guard = Event("left the Eulerian domain", lambda q: q.data["min_alignment"] - 0.05, stop=True)
+    tr = Tracker(sysw, x0, 0.0, s, monitor=sysw.outputs, events=[guard])
+    last = None
+    try:
+        for pt in tr:
+            last = pt
+    except StopContinuation as exc:
+        raise TraceError(f"no start near the straight state at phi_L = {phi_L:g}: {exc}") from None
+    if last is None or last.kind != Kind.BOUND or abs(last.p - rod.w) > 1e-9 * rod.w:
+        why = tr.stop_reason or "it did not reach the rod's weight"
+        raise TraceError(f"no start near the straight state at phi_L = {phi_L:g}: the weight homotopy "
+                         f"stopped at w = {last.p if last else 0.0:.6g} ({why})")
+    return sysw, last.x
+
+
+def switch_direction(sysm: RodSystem, x: np.ndarray, value: float, direction: tuple, theta: float = 0.5):
+    """Direction of the other branch at a branch point of ``sysm`` (incoming direction given)."""
+    from ..bifurcation import bifurcating_direction
+    _, J, Fp = sysm.linearise(x, value)
+    n = x.size
+    tx, tp = bifurcating_direction(J, Fp, np.asarray(direction[0], float), float(direction[1]),
+                                   theta / n, 1.0 - theta)
+    return tx, tp
+
+
+# --------------------------------------------------------------------------
+# Recording
+# --------------------------------------------------------------------------
+class Recorder:
+    """Adds points to a :class:`Branch` and, if any, to a branch-file group; publishes
+    the file on every special point and at least every second."""
+
+    def __init__(self, branch: Branch, writer=None, group=None):
+        self.branch, self.writer, self.group = branch, writer, group
+
+    def add(self, pt: Point, breakpoints: np.ndarray) -> int:
+        i = self.branch.add(pt, breakpoints)
+        if self.writer is not None:
+            row = dict(pt.data)
+            row["arclength"] = pt.arclength
+            row["dphi_ds"] = self.branch.table["dphi_ds"][-1]
+            row.setdefault("error", np.nan)
+            self.writer.add_point(self.group, row, str(pt.kind), pt.located, pt.x,
+                                  np.append(pt.tx, pt.tp), breakpoints)
+            if pt.kind not in (Kind.REGULAR,) or self.writer.due():
+                self.sync()
+                self.writer.flush()
+        return i
+
+    def sync(self) -> None:
+        if self.writer is not None:
+            bps = [dict(index=i, phi_L=self.branch.table["phi_L"][i], stretch=self.branch.table["stretch"][i])
+                   for i in self.branch.branch_points]
+            self.group.set_special(self.branch.folds, bps)
+
+
+# --------------------------------------------------------------------------
+# The driver
+# --------------------------------------------------------------------------
+@dataclass
+class _Segment:
+    system: RodSystem
+    x: np.ndarray
+    p: float
+    tangent: tuple | None
+    exact: bool = False
+
+
+def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tangent0=None, exact: bool = False,
+        branch: Branch | None = None, recorder: Recorder | None = None,
+        callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
+    """Trace from ``(x0, p0)`` on ``system`` (its parameter continued) with ``options``; fills ``branch``.
+
+    ``tangent0``: the direction to leave by (``(tx, tp)``), else ``options.direction``
+    in the parameter. ``exact``: ``(x0, p0)`` is a solution used as is (branch switching).
+    """
+    o = options
+    rod = system.rod
+    if branch is None:
+        branch = Branch(gamma=system.gamma if rod.w > 0 else math.nan, rod=rod, N=system.disc.N, k=system.disc.k,
+                        param=system.param)
+    recorder = recorder or Recorder(branch)
+    if system.param == "phi_L":
+        p_min, p_max = o.phi_min, o.phi_max
+    elif o.p_range is not None:
+        p_min, p_max = o.p_range
+    else:
+        raise TraceError(f"a trace in {system.param} needs its range (p_range / --range A B)")
+    if settings is None:
+        settings = ContinuationSettings(ds=o.ds, ds_min=o.ds_min, ds_max=o.ds_max, p_min=p_min, p_max=p_max,
+                                        max_steps=o.max_steps, direction=o.direction, forced=tuple(o.forced))
+    events = [Event(f"validity guard: min d3.K3 reached min_alignment = {o.min_alignment:g} (the rod is about "
+                    f"to fold back over the reference curve: the Eulerian description ends)",
+                    lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6),
+              Event("the stretch factor reached 0 (compressed through zero length: not physical)",
+                    lambda q: q.data["alpha_min"], stop=True, tol=1e-6)]
+    if o.stretch_max is not None:
+        events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
+                            lambda q: o.stretch_max - q.data["stretch"], stop=True))
+    accuracy = Accuracy(o.max_error)
+    t_start = time.perf_counter()
+    seg = _Segment(system, np.asarray(x0, float), float(p0), tangent0, exact)
+    segments = 0
+    start_attempts = 0
+    remeshes_here = 0  # remeshes since the last stored point: more than a few means no progress
+    last_recorded: tuple | None = None  # (point, system) of the last stored point
+    reason = StopReason(Stop.START_FAILED, "not started")
+    steps = iterations = 0
+    try:
+        while True:
+            sysm = seg.system
+            tracker = Tracker(sysm, seg.x, seg.p, settings, monitor=sysm.outputs, events=events,
+                              tangent0=seg.tangent, exact_start=seg.exact)
+            try:
+                first = tracker.start()
+            except StopContinuation as exc:
+                if last_recorded is None:
+                    raise TraceError(str(exc)) from None
+                # the new mesh did not converge: go on, unadapted, from the last stored point
+                sysm = last_recorded[1]
+                pt = last_recorded[0]
+                seg = _Segment(sysm, pt.x, pt.p, (pt.tx, pt.tp))
+                o = _no_adapt(o)
+                continue
+            steps += tracker.steps
+            err = accuracy.measure(sysm, first)
+            if err > accuracy.trigger and o.adapt and start_attempts < 6 and sysm.disc.N < o.N_max:
+                start_attempts += 1
+                seg = _remesh(sysm, first, err, accuracy, o)
+                continue
+            if err > o.max_error:
+                if last_recorded is None:
+                    raise TraceError(f"accuracy guard already violated at the start: estimated error "
+                                     f"{err:.2g} > max_error = {o.max_error:g} with N = {sysm.disc.N}"
+                                     + ("" if o.adapt else " (the mesh is fixed: raise N or let it adapt)")
+                                     + ("" if sysm.disc.N < o.N_max else f" (N_max = {o.N_max} reached)"))
+                reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
+                                                f"{o.max_error:g} and the mesh cannot be refined further "
+                                                f"(N = {sysm.disc.N}, N_max = {o.N_max})")
+                break
+            start_attempts = 0
+            if last_recorded is None:
+                first.arclength = 0.0
+                why = tracker._check_start(first)
+                if why is None:
+                    why = _bound_at_start(first, p_min, p_max)
+                if why is not None:
+                    raise TraceError(f"cannot start there: {why.message}")
+                recorder.add(first, sysm.disc.breakpoints)
+                last_recorded = (first, sysm)
+                if callback is not None:
+                    callback(first)
+            else:
+                first.arclength = last_recorded[0].arclength
+            next_seg = None
+            tracker.current = first
+            arc0 = first.arclength
+            for pt in tracker:
+                pt.arclength += arc0
+                err = accuracy(sysm, pt)
+                if (pt.kind == Kind.FOLD and err > o.fold_error and o.adapt and sysm.disc.N < o.N_max
+                        and remeshes_here < 3):
+                    # locate this fold again on a mesh refined for it
+                    remeshes_here += 1
+                    base = last_recorded[0]
+                    next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
+                                       accuracy, o, at_least=err, target=o.fold_error / 10)
+                    break
+                if err > o.max_error:
+                    if o.adapt and sysm.disc.N < o.N_max and remeshes_here < 4:
+                        remeshes_here += 1
+                        base = last_recorded[0]
+                        next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
+                                           accuracy, o, at_least=err)
+                        break
+                    reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
+                                                    f"{o.max_error:g} at p = {pt.p:.10g}"
+                                                    + ("" if o.adapt else " (the mesh is fixed: raise N or let it adapt)")
+                                                    + ("" if sysm.disc.N < o.N_max else
+                                                       f" (N_max = {o.N_max} reached)")
+                                                    + (" (refining the mesh did not help)" if remeshes_here >= 4 else ""))
+                    break
+                recorder.add(pt, sysm.disc.breakpoints)
+                last_recorded = (pt, sysm)
+                remeshes_here = 0
+                if callback is not None:
+                    callback(pt)
+                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None:
+                    next_seg = _remesh(sysm, pt, err, accuracy, o)
+                    break
+            steps += tracker.steps
+            iterations += tracker.newton_iterations
+            segments += 1
+            if next_seg is not None:
+                seg = next_seg
+                branch.remeshes += 1
+                continue
+            if tracker.stop is not None:
+                reason = tracker.stop
+            break
+    except StopContinuation as exc:
+        reason = StopReason(Stop.START_FAILED, str(exc))
+    except KeyboardInterrupt:
+        reason = StopReason(Stop.EVENT, "interrupted")
+        raise
+    finally:
+        branch.stop_reason = reason.message
+        branch.steps += steps
+        branch.newton_iterations += iterations
+        branch.elapsed += time.perf_counter() - t_start
+        recorder.sync()
+    return branch
+
+
+def _no_adapt(o: TraceOptions) -> TraceOptions:
+    d = o.as_dict()
+    d["adapt"] = False
+    return TraceOptions(**d)
+
+
+def _bound_at_start(pt: Point, p_min: float, p_max: float) -> StopReason | None:
+    if (pt.p >= p_max and pt.tp > 0) or (pt.p <= p_min and pt.tp < 0):
+        return StopReason(Stop.AT_START, f"the start p = {pt.p:.10g} is on a bound of [{p_min:g}, {p_max:g}] "
+                                         f"and the branch leaves it")
+    return None
+
+
+def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
+            at_least: float = 0.0, target: float | None = None) -> _Segment:
+    """A new segment from ``pt`` on a mesh adapted to it (aiming at a tenth of the trigger, or ``target``)."""
+    p = pt.p
+    indicator = sysm.interval_defect(pt.x, p)
+    b = adapted_mesh(sysm.disc.breakpoints, indicator, sysm.disc.k, max(err, at_least),
+                     target if target is not None else accuracy.trigger / 10,
+                     N_max=o.N_max)
+    new = sysm.with_mesh(b)
+    x = new.disc.transfer(pt.x, sysm.disc)
+    tx = new.disc.transfer(pt.tx, sysm.disc)
+    accuracy.reset()
+    return _Segment(new, x, p, (tx, pt.tp))
+
+
+def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
+          T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
+          start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
+          breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
+          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None,
+          **options) -> Branch:
+    """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
+
+    In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
+    point ``start = (x, value, direction)`` (``direction = (dx, dvalue)`` or
+    None; ``breakpoints`` its mesh); or from the near-straight state at
+    ``from_straight = PHI`` (:func:`straight_seed`). ``param`` other than
+    ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
+    ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
+    along the other branch. ``options``: the fields of :class:`TraceOptions`
+    (a misspelt name is a ``TypeError``).
+    """
+    try:
+        opts = TraceOptions(**options)
+    except TypeError as exc:
+        raise TypeError(str(exc).replace("TraceOptions.__init__()", "trace()")) from None
+    if rod is None:
+        rod = RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    if not 1 <= N <= 100000:
+        raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N}")
+    if not 1 <= k <= 7:
+        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k}")
+    if param not in SYSTEM_PARAMS:
+        raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
+    if T is None:
+        if gamma is None:
+            raise ValueError("give gamma (T = gamma w L) or T")
+        gamma = check_number("gamma", gamma)
+        if rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
+        T = rod.tension(gamma)
+    T = check_number("T", T)
+    if not math.isfinite(T) or abs(T) > 1e12 * max(rod.EA, rod.EI / rod.L**2):
+        raise ValueError(f"the tension T = {T:.6g} is not a usable number")
+    check_tension(rod, T)
+    phi_L = check_number("phi_L", phi_L)
+    if start is not None and from_straight is not None:
+        raise ValueError("give start or from_straight, not both")
+    if switch and start is None:
+        raise ValueError("switch needs a start point (a branch point) with its incoming direction")
+    tangent0, exact = None, False
+    if from_straight is not None:
+        phi0 = check_number("from_straight", from_straight)
+        sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints)
+        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints)
+        p0 = phi0 if param == "phi_L" else system.value()
+    elif start is not None:
+        x0, p0, t0 = start
+        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
+                           breakpoints=breakpoints)
+        x0 = np.asarray(x0, float)
+        if x0.size != system.disc.size:
+            raise ValueError("the start point does not fit this mesh (N, k)")
+        p0 = check_number("start value", p0)
+        if t0 is not None:
+            tangent0 = (np.asarray(t0[0], float), float(t0[1]))
+            if tangent0[0].size != x0.size:
+                tangent0 = (np.zeros(x0.size), tangent0[1] if tangent0[1] != 0 else 1.0)
+        if switch:
+            if tangent0 is None:
+                raise ValueError("switch needs the incoming direction at the branch point")
+            tangent0 = switch_direction(system, x0, p0, tangent0)
+            exact = True
+    else:
+        if param != "phi_L":
+            raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
+        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints)
+        x0 = system.model.initial_guess(system.disc, system.base[1])
+        p0 = 0.0
+    branch = Branch(gamma=rod.gamma(T) if rod.w > 0 else math.nan, rod=rod, N=N, k=k, param=param)
+    writer = group = None
+    if out is not None:
+        from ..branchfile import BranchWriter, check_output
+        check_output(out, overwrite=overwrite)
+        writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta))
+        group = writer.group("/", extra_columns=(param,) if param != "phi_L" else ())
+        _mesh_group(writer, system)
+    recorder = Recorder(branch, writer, group)
+    try:
+        with np.errstate(all="ignore"):
+            run(system, x0, p0, opts, tangent0=tangent0, exact=exact, branch=branch, recorder=recorder,
+                callback=callback, settings=settings)
+    except KeyboardInterrupt:
+        branch.stop_reason = "interrupted"
+        raise
+    finally:
+        if writer is not None:
+            writer.close(branch.stop_reason or "interrupted")
+    return branch
+
+
+def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: TraceOptions, system: RodSystem,
+              extra: dict | None = None) -> dict:
+    """Root attributes of a branch file: the rod, the loads, the mesh and every run setting."""
+    from .. import __version__
+    meta = dict(kind="branch", gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=float(T), w=rod.w, EI=rod.EI,
+                GJ=rod.GJ, EA=rod.EA, L=rod.L, N=int(N), k=int(k), param=param,
+                weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=opts.min_alignment,
+                max_error=opts.max_error, phi_L_fixed=float(system.base[0]) if param != "phi_L" else math.nan,
+                settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float))
+    if rod.w == 0:
+        meta["gamma"] = math.nan
+    meta.update(extra or {})
+    return meta
+
+
+def _mesh_group(writer, system: RodSystem) -> None:
+    from ..rod import FIELDS, ORDERS
+    mesh = writer.f.require_group("mesh")
+    if "breakpoints" not in mesh:
+        mesh.create_dataset("breakpoints", data=np.asarray(system.disc.breakpoints, float))
+        mesh.attrs["orders"] = np.asarray(ORDERS)
+        mesh.attrs["fields"] = ",".join(FIELDS)
+        mesh.attrs["layout"] = "rodcont.collocation.Collocation interleaved coefficients"

@@ -1,0 +1,242 @@
+"""Sparse linear algebra of the solvers: LU with determinant, bordered systems, Newton.
+
+Knows nothing of rods or of collocation. Three pieces:
+
+* :class:`LU`: a sparse LU (SuperLU, natural column order: the matrices here
+  come banded) that also gives the sign and log-magnitude of the determinant
+  and solves with a rank-one change of its last row (Sherman-Morrison), so a
+  factorisation of ``[[J, b], [c^T, d]]`` serves every border row ``c'``.
+* :class:`BorderedPattern`: ``[[J, b], [c^T, d]]`` assembled straight from
+  ``J``'s CSC arrays through insertion positions computed once per sparsity
+  pattern.
+* :func:`newton_solve`: damped Newton returning a :class:`NewtonResult`
+  (a failure is data, not an exception).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+
+def max_norm(v: np.ndarray) -> float:
+    return float(np.max(np.abs(v))) if v.size else 0.0
+
+
+# --------------------------------------------------------------------------
+# LU with determinant and border changes
+# --------------------------------------------------------------------------
+class SingularMatrix(ArithmeticError):
+    """The factorisation met an exactly zero pivot."""
+
+
+class LU:
+    """Sparse LU of a square CSC matrix ``A`` (``Pr A = L U``, natural column order).
+
+    ``solve(b)`` solves ``A x = b``; ``solve(b, trans=True)`` solves ``A^T x = b``.
+    ``det()`` returns ``(sign, log|det|)``. For a bordered matrix whose last
+    row is ``r``, ``with_last_row(r_new)`` returns a solver for the matrix
+    with that row replaced (one extra solve, once).
+    """
+
+    def __init__(self, A: sp.csc_matrix):
+        try:
+            self._lu = spla.splu(A, permc_spec="NATURAL")
+        except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+            raise SingularMatrix(str(exc)) from None
+        self.n = A.shape[0]
+        self._det = None
+
+    def solve(self, b: np.ndarray, trans: bool = False) -> np.ndarray:
+        return self._lu.solve(np.asarray(b, float), trans="T" if trans else "N")
+
+    def det(self) -> tuple[int, float]:
+        """Sign and log-magnitude of ``det A`` (from the diagonal of ``U`` and the row permutation)."""
+        if self._det is None:
+            u = self._lu.U.diagonal()
+            sign = int(np.prod(np.sign(u))) * permutation_sign(self._lu.perm_r) * permutation_sign(self._lu.perm_c)
+            with np.errstate(divide="ignore"):
+                self._det = (sign, float(np.sum(np.log(np.abs(u)))))
+        return self._det
+
+    def with_last_row(self, old_row: np.ndarray, new_row: np.ndarray, u: np.ndarray | None = None) -> "RowUpdatedLU":
+        """``u``: ``A^{-1} e_n`` if already solved for (a tangent solve)."""
+        return RowUpdatedLU(self, old_row, new_row, u)
+
+
+class RowUpdatedLU:
+    """Solver for ``A + e_n (r_new - r_old)^T`` from the LU of ``A`` (Sherman-Morrison).
+
+    With ``u = A^{-1} e_n``: ``x = y - u (delta . y) / (1 + delta . u)``, ``y = A^{-1} b``.
+    For a bordered matrix whose old last row gave ``r_old . u = 1`` (a tangent
+    solve), the denominator is ``r_new . u``: far from zero while the new row is
+    close to the tangent direction, as in a continuation step.
+    """
+
+    def __init__(self, lu: LU, old_row: np.ndarray, new_row: np.ndarray, u: np.ndarray | None = None):
+        self.lu = lu
+        self.delta = np.asarray(new_row, float) - np.asarray(old_row, float)
+        if u is None:
+            e = np.zeros(lu.n)
+            e[-1] = 1.0
+            u = lu.solve(e)
+        self.u = u
+        self.denominator = 1.0 + float(self.delta @ self.u)
+        if not (math.isfinite(self.denominator) and abs(self.denominator) > 1e-12):
+            raise SingularMatrix("the updated bordered matrix is singular")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        y = self.lu.solve(b)
+        return y - self.u * (float(self.delta @ y) / self.denominator)
+
+
+def permutation_sign(perm: np.ndarray) -> int:
+    """Sign of a permutation: ``(-1)^(n - number of cycles)``, walking only the moved entries."""
+    perm = np.asarray(perm)
+    moved = np.flatnonzero(perm != np.arange(perm.size))
+    seen = np.zeros(perm.size, bool)
+    parity = 0
+    for start in moved:
+        if seen[start]:
+            continue
+        j, length = start, 0
+        while not seen[j]:
+            seen[j] = True
+            j = perm[j]
+            length += 1
+        parity += length - 1
+    return -1 if parity % 2 else 1
+
+
+# --------------------------------------------------------------------------
+# Bordered matrices
+# --------------------------------------------------------------------------
+class BorderedPattern:
+    """``[[J, b], [c^T, d]]`` for every ``J`` with one CSC sparsity pattern.
+
+    The positions of ``J``'s entries, of the border column ``b`` and of the
+    border row ``c`` in the bordered CSC data array are computed once; each
+    assembly is then one array fill.
+    """
+
+    def __init__(self, indices: np.ndarray, indptr: np.ndarray, n: int):
+        self.n = n
+        counts = np.diff(indptr)
+        # column j of the bordered matrix: J's column j, then the border-row entry
+        new_indptr = np.concatenate([[0], np.cumsum(counts + 1)])
+        new_indptr = np.append(new_indptr, new_indptr[-1] + n + 1)
+        col_of = np.repeat(np.arange(n), counts)
+        self.pos_J = np.arange(indices.size) + col_of
+        self.pos_row = new_indptr[1:n + 1] - 1
+        self.pos_col = np.arange(new_indptr[n], new_indptr[n + 1])
+        new_indices = np.empty(new_indptr[-1], dtype=np.int32)
+        new_indices[self.pos_J] = indices
+        new_indices[self.pos_row] = n
+        new_indices[self.pos_col] = np.arange(n + 1)
+        self.indices, self.indptr = new_indices, new_indptr.astype(np.int32)
+        self.source = (indices, indptr)
+
+    def assemble(self, J_data: np.ndarray, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
+        data = np.empty(self.indices.size)
+        data[self.pos_J] = J_data
+        data[self.pos_row] = c
+        data[self.pos_col[:-1]] = b
+        data[self.pos_col[-1]] = d
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
+
+
+_PATTERNS: dict = {}
+
+
+def bordered(J, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
+    """``[[J, b], [c^T, d]]`` as CSC (the insertion positions are cached per pattern)."""
+    J = J.tocsc() if sp.issparse(J) else sp.csc_matrix(np.asarray(J))
+    if not J.has_sorted_indices:
+        J = J.sorted_indices()
+    n = J.shape[0]
+    # a discretisation hands out Jacobians of one pattern: keyed by shape and size, checked by value
+    key = (n, J.indices.size)
+    pat = _PATTERNS.get(key)
+    if pat is None or not (np.array_equal(pat.source[0], J.indices) and np.array_equal(pat.source[1], J.indptr)):
+        pat = BorderedPattern(J.indices, J.indptr, n)
+        if len(_PATTERNS) > 16:
+            _PATTERNS.clear()
+        _PATTERNS[key] = pat
+    return pat.assemble(J.data, np.asarray(b, float), np.asarray(c, float), float(d))
+
+
+# --------------------------------------------------------------------------
+# Newton
+# --------------------------------------------------------------------------
+@dataclass
+class NewtonResult:
+    """Outcome of a Newton solve. ``converged`` False is a result, not an error."""
+
+    x: np.ndarray
+    converged: bool
+    iterations: int
+    residual_norm: float
+    step_norm: float
+    message: str
+    lu: object = field(default=None, repr=False)
+    corrections: list = field(default_factory=list, repr=False)  # the first two Newton steps
+
+
+def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: float = 1e-10,
+                 max_iter: int = 30, min_damping: float = 1.0 / 64) -> NewtonResult:
+    """Damped Newton for ``F(x) = 0`` given ``linearise(x) -> (F, J)`` (``J`` sparse).
+
+    One assembly and one sparse LU per iteration. A full step is tried first;
+    while the max-norm residual does not decrease the step is halved, down to
+    ``min_damping``. Converged when a full step is below ``tol * (1 + |x|)``,
+    or when quadratic convergence predicts the next one is
+    (``|dx_k|^2 / |dx_{k-1}| <= tol * (1 + |x|)`` with ``|dx_k| < |dx_{k-1}| / 4``),
+    which saves the last, confirming, iteration; the residual at the result
+    must not exceed the one before the step (beyond rounding). ``lu`` in the
+    result is the factorisation of the last Jacobian used (one step before ``x``).
+    """
+    x = np.array(x0, dtype=float)
+    F, J = linearise(x)
+    fnorm, step, prev = max_norm(F), np.inf, np.inf
+    # residual changes below this are rounding: the size of the terms, not of their sum
+    floor = 1e-13 * (1.0 + (fnorm if np.isfinite(fnorm) else 0.0))
+    corrections: list = []
+    for it in range(1, max_iter + 1):
+        if not np.all(np.isfinite(F)):
+            return NewtonResult(x, False, it - 1, fnorm, step, "residual is not finite")
+        try:
+            lu = LU(J)
+        except SingularMatrix as exc:
+            return NewtonResult(x, False, it - 1, fnorm, step, f"singular Jacobian ({exc})")
+        dx = lu.solve(-F)
+        if len(corrections) < 2:
+            corrections.append(dx)
+        prev, step = step, max_norm(dx)
+        scale = tol * (1 + max_norm(x))
+        if not np.isfinite(step):
+            return NewtonResult(x, False, it, fnorm, step, "Newton step is not finite (singular Jacobian)")
+        done = step <= scale or (np.isfinite(prev) and step < 0.25 * prev and step * step <= scale * prev)
+        if done:
+            fdone = max_norm(residual(x + dx))
+            if np.isfinite(fdone) and fdone <= 10.0 * fnorm + floor:  # a tiny step only moves rounding
+                return NewtonResult(x + dx, True, it, fdone, step, "converged", lu, corrections)
+        Ft, Jt = linearise(x + dx)
+        ft, lam = max_norm(Ft), 1.0
+        while not (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor):
+            lam *= 0.5
+            if lam < min_damping:
+                return NewtonResult(x, False, it, fnorm, step, "line search failed: the residual does not decrease")
+            Ft = residual(x + lam * dx)
+            ft, Jt = max_norm(Ft), None
+        x = x + lam * dx
+        if Jt is None:
+            Ft, Jt = linearise(x)
+        F, J, fnorm = Ft, Jt, max_norm(Ft)
+        if lam < 1.0:
+            step = np.inf  # a damped step says nothing about the rate
+    return NewtonResult(x, False, max_iter, fnorm, step, f"no convergence in {max_iter} iterations")

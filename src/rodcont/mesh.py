@@ -1,0 +1,155 @@
+"""Meshes that follow the solution: error estimates, equidistribution, refinement.
+
+The error of a collocation solution is estimated by re-solving it on the mesh
+with every subinterval halved. The spline space of a mesh is contained in that
+of the halved mesh (the same knots, plus new ones), so the coarse solution is
+carried over exactly and *one* Newton step there gives the change of the
+solution to second order in it. The change of the quantities a user reads
+(stretch, unstressed length, torque, the centreline) is the estimate: the
+halved solution is more accurate by a factor ``2^(2k)`` at the mesh points
+and ``2^(k+1)`` or more in between, so the change is the coarse error.
+
+A new mesh (:func:`adapted_mesh`) equidistributes a per-subinterval indicator
+(the residual between collocation points) with as many subintervals as the
+estimate says are needed to bring the error to a target, assuming it falls
+like ``h^(k+2)`` (conservative: the outputs converge at ``h^(2k)``, the
+centreline between mesh points at ``h^(k+3)``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def halved(breakpoints: np.ndarray) -> np.ndarray:
+    b = np.asarray(breakpoints, float)
+    return np.sort(np.concatenate([b, 0.5 * (b[1:] + b[:-1])]))
+
+
+def equidistribute(breakpoints: np.ndarray, indicator: np.ndarray, order: int, floor: float = 0.02,
+                   ratio: float = 2.0, relax: float = 0.5, N: int | None = None) -> np.ndarray:
+    """A mesh (``N`` subintervals, default as many as now) on which ``indicator`` would be equal.
+
+    ``indicator[i]`` is an error estimate on subinterval ``i`` behaving like
+    ``C_i h_i^order``; the new sizes follow the density ``C^(1/order)``
+    (floored at ``floor`` of its maximum, neighbours within ``ratio``), and the
+    new mesh is ``relax`` of the way from the old one to the equidistributed one
+    (only when ``N`` is unchanged: a new count is equidistributed outright).
+    """
+    b = np.asarray(breakpoints, float)
+    h = np.diff(b)
+    d = np.maximum(np.asarray(indicator, float), 1e-300)
+    rho = (d / h**order) ** (1.0 / order)
+    rho = np.maximum(rho, floor * rho.max())
+    for _ in range(len(rho)):  # limit the ratio of neighbouring densities
+        before = rho.copy()
+        rho[1:] = np.maximum(rho[1:], rho[:-1] / ratio)
+        rho[:-1] = np.maximum(rho[:-1], rho[1:] / ratio)
+        if np.array_equal(before, rho):
+            break
+    cum = np.concatenate([[0.0], np.cumsum(rho * h)])
+    n_new = b.size - 1 if N is None else int(N)
+    target = np.interp(np.linspace(0.0, cum[-1], n_new + 1), cum, b)
+    if n_new == b.size - 1:
+        target = (1 - relax) * b + relax * target
+    target[0], target[-1] = b[0], b[-1]
+    return target
+
+
+def adapted_mesh(breakpoints: np.ndarray, indicator: np.ndarray, k: int, error: float, target: float,
+                 N_min: int = 4, N_max: int = 1000, grow: float = 4.0) -> np.ndarray:
+    """A new partition for an estimated ``error``, aiming at ``target``.
+
+    The count scales by ``(error / target)^(1/(k+2))`` (at most ``grow`` times
+    more, at least half as many, within ``[N_min, N_max]``) and the breakpoints
+    equidistribute ``indicator`` (``~ h^k`` per subinterval).
+    """
+    b = np.asarray(breakpoints, float)
+    N = b.size - 1
+    factor = (max(error, 1e-300) / target) ** (1.0 / (k + 2))
+    factor = min(max(factor, 0.5), grow)
+    N_new = int(min(max(math.ceil(N * factor), N_min), N_max))
+    return equidistribute(b, indicator, order=k, relax=1.0, N=N_new)
+
+
+class ErrorEstimator:
+    """Estimated error of a solution of a :class:`rodcont.system.RodSystem` on its mesh.
+
+    ``estimate(x, value)`` returns the largest of: the change of the stretch,
+    of ``l0 / L``, of the torque relative to ``max(|torque|, EI/L)``, and of the
+    centreline relative to ``L`` (on 8 points per subinterval) when every
+    subinterval is halved. The halved discretisation is built once per mesh.
+    """
+
+    def __init__(self, system, samples: int = 8):
+        self.system = system
+        self.fine = system.with_mesh(halved(system.disc.breakpoints))
+        b = system.disc.breakpoints
+        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
+        self.S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
+        coarse, fine = system.disc, self.fine.disc
+        # the coarse space lies in the fine one: carry coefficients over by collocating at the fine Gauss points
+        self._to_fine = _embedding(coarse, fine)
+        self._centre_c = [coarse.evaluation_matrix(self.S, i) for i in (0, 1)]
+        self._centre_f = [fine.evaluation_matrix(self.S, i) for i in (0, 1)]
+
+    def estimate(self, x: np.ndarray, value: float, tangent: tuple | None = None) -> float:
+        """Estimated error of the solution ``x`` at parameter ``value``.
+
+        With ``tangent = (tx, tp)`` (the branch tangent) the halved problem is
+        solved on the hyperplane through the point normal to the tangent, as the
+        tracker's corrector does, so the estimate stays finite at a fold (where
+        the Jacobian at fixed parameter is singular) and includes the change of
+        the parameter itself (how far the fold moves).
+        """
+        from .linalg import LU, SingularMatrix, bordered
+        sysc, sysf = self.system, self.fine
+        xf = self._to_fine(x)
+        F, J, Fp = sysf.linearise(xf, value)
+        try:
+            if tangent is None:
+                dx, dp = LU(J).solve(-F), 0.0
+            else:
+                tx = self._to_fine(np.asarray(tangent[0], float))
+                n = tx.size
+                A = bordered(J, Fp, 0.5 / n * tx, 0.5 * float(tangent[1]))
+                d = LU(A).solve(-np.append(F, 0.0))
+                dx, dp = d[:-1], float(d[-1])
+        except SingularMatrix:
+            return math.inf
+        xf2, pf = xf + dx, value + dp
+        oc = sysc.model.outputs(sysc.disc, x, sysc.params(value))
+        of = sysf.model.outputs(sysf.disc, xf2, sysf.params(pf))
+        L, EI = sysc.rod.L, float(sysc.params(value)[3])
+        errs = [abs(of["stretch"] - oc["stretch"]), abs(of["l0"] - oc["l0"]) / L,
+                abs(of["torque"] - oc["torque"]) / max(abs(of["torque"]), EI / L),
+                abs(dp) / max(abs(value), 1.0)]
+        for Ec, Ef in zip(self._centre_c, self._centre_f):
+            errs.append(float(np.max(np.abs(Ef @ xf2 - Ec @ x))) / L)
+        e = max(errs)
+        return e if math.isfinite(e) else math.inf
+
+
+def _embedding(coarse, fine):
+    """``x_coarse -> x_fine`` for nested spline spaces: least squares at ``k + m`` Gauss points
+    per fine subinterval (exact, the coarse function lies in the fine space), factorised once."""
+    import scipy.sparse.linalg as spla
+    from .bspline import gauss_points
+    solvers = []
+    for i, m in enumerate(coarse.problem.orders):
+        pts = gauss_points(fine.breakpoints, fine.k + m)[0]
+        A = fine.spaces[i].matrix(pts)
+        B = coarse.evaluation_matrix(pts, i)
+        solvers.append((spla.splu((A.T @ A).tocsc()), (A.T @ B).tocsr(), fine.index[i]))
+
+    def carry(x):
+        out = np.zeros(fine.size)
+        for lu, AtB, idx in solvers:
+            out[idx] = lu.solve(AtB @ x)
+        if fine.n_free:
+            out[fine.free_index] = x[coarse.free_index]
+        return out
+
+    return carry

@@ -1,0 +1,189 @@
+"""The rod on the generic solvers: the discretised rod as a one- or two-parameter problem.
+
+:class:`RodSystem` is ``F(x, q) = 0`` for the tracker, with ``q`` any one of
+``phi_L, T, w, EI, GJ, EA`` or ``gamma`` (``T = gamma w L``); the other
+parameters are held at ``base``. :class:`RodSystem2` is ``F(x, phi_L, q) = 0``
+for fold curves. Both know their mesh; ``with_mesh`` moves them to another.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .collocation import Collocation
+from .rod import PARAMS, EulerianRod, RodParameters
+
+SYSTEM_PARAMS = PARAMS + ("gamma",)
+OUTPUTS = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "defect")
+
+
+def check_number(name: str, value, *, positive: bool = False, nonnegative: bool = False,
+                 integer: bool = False, allow_inf: bool = False) -> float:
+    """One validation for the API and the command line: a ``TypeError`` or ``ValueError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be {'an integer' if integer else 'a number'}, got {value!r}")
+    if integer and not (isinstance(value, (int, np.integer)) or float(value).is_integer()):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    v = float(value)
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if positive and not v > 0:
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    if nonnegative and not v >= 0:
+        raise ValueError(f"{name} must be non-negative, got {value!r}")
+    return int(v) if integer else v
+
+
+class RodSystem:
+    """The discretised rod as a one-parameter problem ``F(x, q) = 0`` for the tracker.
+
+    ``param`` names the continuation parameter (default ``phi_L``); every other
+    entry of ``(phi_L, T, w, EI, GJ, EA)`` is held at ``base``. With
+    ``param = "gamma"`` the tension follows ``T = gamma w L``.
+    """
+
+    def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
+                 param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None):
+        if param not in SYSTEM_PARAMS:
+            raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
+        if T is None:
+            if gamma is None:
+                raise ValueError("give gamma or T")
+            T = rod.tension(gamma)
+        if param == "gamma" and rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
+        self.rod = rod
+        self.model = EulerianRod(rod)
+        self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
+        self.base = self.model.params(phi_L, T=T)
+        self.param = param
+        self.index = PARAMS.index("T" if param == "gamma" else param)
+        self.scale = rod.w * rod.L if param == "gamma" else 1.0  # d(entry)/dq
+
+    @property
+    def gamma(self) -> float:
+        return self.rod.gamma(self.base[1])
+
+    def with_mesh(self, breakpoints) -> "RodSystem":
+        """The same rod and parameters on another partition."""
+        new = RodSystem.__new__(RodSystem)
+        new.__dict__.update(self.__dict__)
+        new.disc = self.model.discretise(k=self.disc.k, breakpoints=np.asarray(breakpoints, float))
+        new.base = self.base.copy()
+        return new
+
+    def value(self) -> float:
+        """``q`` at the base parameters."""
+        return float(self.base[self.index] / self.scale)
+
+    def params(self, value: float) -> np.ndarray:
+        p = self.base.copy()
+        p[self.index] = value * self.scale
+        return p
+
+    def set_value(self, value: float) -> None:
+        self.base = self.params(value)
+
+    def residual(self, x, value):
+        return self.disc.residual(x, self.params(value))
+
+    def linearise(self, x, value):
+        F, J, Fp = self.disc.linearise(x, self.params(value), [self.index])
+        return F, J, Fp[0] * self.scale
+
+    def tangent(self, x, value):
+        return self.linearise(x, value)[1:]
+
+    def outputs(self, x, value) -> dict:
+        p = self.params(value)
+        o = self.model.outputs(self.disc, x, p)
+        out = dict(phi_L=float(p[0]), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
+                   helical_waves=o["helical_waves"], min_alignment=o["min_alignment"],
+                   defect=o["defect"], torque_spread=o["torque_spread"], alpha_min=o["alpha_min"])
+        if self.param != "phi_L":
+            out[self.param] = float(value)
+        return out
+
+    def interval_defect(self, x, value) -> np.ndarray:
+        return self.model.output_evaluator(self.disc).interval_defect(x, self.params(value))
+
+    def straight_state(self, phi_L: float) -> np.ndarray:
+        """The exact straight state ``Delta = 0``, ``phi = phi_L S / L``, ``F = T K3`` (exact for ``w = 0``)."""
+        L, T = self.rod.L, float(self.base[1])
+        zero = lambda S: 0.0 * S  # noqa: E731
+        return self.disc.project([zero, zero, lambda S: phi_L * S / L, zero, zero, lambda S: 0.0 * S + T])
+
+    def key(self) -> tuple:
+        """What makes two systems the same discrete problem (for caches)."""
+        return (tuple(self.base), self.param, self.disc.k, self.disc.breakpoints.tobytes(),
+                tuple(sorted(self.rod.as_dict().items())))
+
+
+class RodSystem2:
+    """The rod as a two-parameter problem ``F(x, phi_L, q) = 0`` for fold curves.
+
+    ``q`` is ``gamma`` (``T = gamma w L``, the others fixed) or one of ``T, w,
+    EI, GJ, EA`` (the others, including ``T``, fixed).
+    """
+
+    def __init__(self, one: RodSystem, param: str):
+        if param not in ("gamma", "T", "w", "EI", "GJ", "EA"):
+            raise ValueError(f"param must be one of gamma, T, w, EI, GJ, EA, got {param!r}")
+        if param == "gamma" and one.rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
+        self.one = one
+        self.param = param
+        self.index = PARAMS.index("T" if param == "gamma" else param)
+        self.scale = one.rod.w * one.rod.L if param == "gamma" else 1.0
+
+    def value(self) -> float:
+        return float(self.one.base[self.index] / self.scale)
+
+    def params(self, phi_L, q):
+        p = self.one.base.copy()
+        p[0] = phi_L
+        p[self.index] = q * self.scale
+        return p
+
+    def residual(self, x, phi_L, q):
+        return self.one.disc.residual(x, self.params(phi_L, q))
+
+    def tangent(self, x, phi_L, q):
+        _, J, (F1, Fq) = self.one.disc.linearise(x, self.params(phi_L, q), [0, self.index])
+        return J, F1, Fq * self.scale
+
+    def outputs(self, X, q) -> dict:
+        x, phi_L = X[:-1], X[-1]
+        p = self.params(phi_L, q)
+        o = self.one.model.outputs(self.one.disc, x, p)
+        return dict(phi_L=float(phi_L), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
+                    helical_waves=o["helical_waves"], min_alignment=o["min_alignment"], defect=o["defect"],
+                    **{self.param: float(q)})
+
+
+def rod_at(rod: RodParameters, p: np.ndarray) -> RodParameters:
+    """The rod whose stiffnesses and weight are those of the parameter vector ``p``."""
+    return RodParameters(EI=float(p[3]), GJ=float(p[4]), EA=float(p[5]), w=float(p[2]), L=rod.L,
+                         weight_direction=rod.weight_direction)
+
+
+_POINT_SYSTEMS: dict = {}
+
+
+def point_system(data, i) -> RodSystem:
+    """The :class:`RodSystem` a stored point ``i`` of a loaded branch lives on (its own mesh).
+
+    Cached by content (rod, tension, mesh, k), never by file name: a file
+    rewritten with another rod gets another system.
+    """
+    pt = data.point(i)
+    b = np.asarray(pt["breakpoints"], float)
+    rod = data.rod
+    key = (tuple(sorted(rod.as_dict().items())), float(data.tension), b.tobytes(), int(data.attrs["k"]))
+    if key not in _POINT_SYSTEMS:
+        if len(_POINT_SYSTEMS) > 32:
+            _POINT_SYSTEMS.clear()
+        _POINT_SYSTEMS[key] = RodSystem(rod, T=data.tension, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b)
+    return _POINT_SYSTEMS[key]
