@@ -83,4 +83,4 @@ def test_adaptive_trace_goes_further_and_stays_a_rod_solution(tmp_path):
     assert r.returncode == 0, r.stderr
     re = rodcont.load_branch(str(tmp_path / "re.h5"))
     assert re.branch["phi_L"][0] == pytest.approx(d.branch["phi_L"][i], abs=1e-9)
-    assert np.array_equal(re.branch["breakpoints"][0], d.branch["breakpoints"][i])
+    assert np.array_equal(re.point(0)["breakpoints"], d.point(i)["breakpoints"])

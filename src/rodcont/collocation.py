@@ -201,18 +201,36 @@ class Collocation:
         self._build_pattern()
 
     def _check_bc_count(self) -> None:
-        """The number of boundary conditions is structural: check it once, at unit jets."""
-        nz = self.problem.jet_size
-        try:
-            with np.errstate(all="ignore"):
-                g = np.atleast_1d(self.problem.bc(np.ones(nz), np.ones(nz), np.ones(max(len(self.problem.params), 1))))
-        except Exception:  # noqa: BLE001 - the count is checked again at every evaluation
-            return
-        if g.shape != (self.n_bc,):
-            raise ValueError(f"bc must return {self.n_bc} conditions (sum of orders + free parameters), "
-                             f"got {g.shape[0] if g.ndim else 1}")
+        """The number of boundary conditions is structural: check it once, at unit jets.
 
-    # ---- structure (computed once) -------------------------------------------
+        The same evaluation (and one at other jets) gives a first guess of which
+        end each condition reads; :meth:`linearise` computes every condition's
+        derivative with respect to both ends anyway and widens the pattern if a
+        condition turns out to read more (so the Jacobian is never missing an
+        entry, and the conditions sit next to their end in the banded order).
+        """
+        nz = self.problem.jet_size
+        self._bc_cols = np.unique(np.concatenate(self.end_cols + [self.free_index]))
+        self._bc_cols_pos = [np.searchsorted(self._bc_cols, c) for c in self.end_cols]
+        mask = np.zeros((self.n_bc, self._bc_cols.size), bool)
+        mask[:, np.searchsorted(self._bc_cols, self.free_index)] = True
+        npar = max(len(self.problem.params), 1)
+        for za, p in ((np.ones(nz), np.ones(npar)), (np.linspace(0.3, 0.7, nz), np.linspace(0.6, 0.9, npar))):
+            try:
+                with np.errstate(all="ignore"):
+                    g, dg = self._bc_jacobian(za, za[::-1].copy(), p)
+            except ValueError:
+                raise
+            except Exception:  # noqa: BLE001 - a bc undefined at these jets: assume it reads both ends
+                mask[:] = True
+                break
+            for side in (0, 1):
+                reads = np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1) | ~np.all(np.isfinite(
+                    dg[:, side * nz:(side + 1) * nz]), axis=1)
+                mask[np.ix_(reads, self._bc_cols_pos[side])] = True
+        mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
+        self._bc_mask = mask
+
     def _build_pattern(self) -> None:
         pb = self.problem
         n, npts = pb.n_fields, self.npts
@@ -223,12 +241,9 @@ class Collocation:
         for j in self.free_index:  # dense free-parameter columns of the collocation rows
             rows.append(np.arange(n * npts))
             cols.append(np.full(n * npts, j))
-        # boundary conditions: every end column (and every free parameter) of every condition
-        self._bc_cols = np.unique(np.concatenate(self.end_cols + [self.free_index]))
-        self._bc_cols_pos = [np.searchsorted(self._bc_cols, c) for c in self.end_cols]
-        bc_r = np.repeat(np.arange(self.n_bc), self._bc_cols.size)
+        bc_r, bc_c = np.nonzero(self._bc_mask)
         rows.append(n * npts + bc_r)
-        cols.append(np.tile(self._bc_cols, self.n_bc))
+        cols.append(self._bc_cols[bc_c])
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         # Order the conditions along the span: each row by the mean of its columns.
         centre = np.bincount(rows, weights=cols, minlength=self.size) / np.maximum(np.bincount(rows, minlength=self.size), 1)
@@ -338,7 +353,13 @@ class Collocation:
         Jb[:, self._bc_cols_pos[1]] += dg[:, nz:] @ self.end_E[1]
         for j in range(len(free)):
             Jb[:, np.searchsorted(self._bc_cols, self.free_index[j])] += dFp[j][n * npts:]
-        data.append(Jb.ravel())
+        outside = Jb[~self._bc_mask]
+        if outside.size and np.any(outside != 0):
+            # a condition reads an end the pattern did not have: widen it (the row order may change)
+            self._bc_mask |= Jb != 0
+            self._build_pattern()
+            return self.linearise(x, p, dparams)
+        data.append(Jb[self._bc_mask])
         csc = np.empty(self.nnz)
         csc[self._slot] = np.concatenate(data)
         J = sp.csc_matrix((csc, self._csc_indices, self._csc_indptr), shape=(self.size, self.size))
@@ -403,19 +424,34 @@ class Collocation:
         Least squares on the values and derivatives up to each field's order
         (derivative ``j`` weighted by ``h_min^j``) at the Gauss points of both
         meshes: the residual involves the highest derivatives, so matching
-        values alone is not enough on a graded mesh.
+        values alone is not enough on a graded mesh. Exact when ``x`` lies in
+        this mesh's spaces.
         """
         b = self.breakpoints
         S = np.union1d(np.union1d(gauss_points(b, min(self.k + 3, 10))[0], b),
                        gauss_points(source.breakpoints, min(source.k + 3, 10))[0])
         hmin = float(np.min(np.diff(b)))
+        npts = S.size
+        mine, theirs = {}, {}
         out = np.zeros(self.size)
         for i, m in enumerate(self.problem.orders):
-            sp_i = self.spaces[i]
-            rows = [hmin**j * sp_i.matrix(S, j) for j in range(m + 1)]
-            rhs = [hmin**j * source.evaluate(x, S, i, j) for j in range(m + 1)]
-            A = sp.vstack(rows).tocsc()
-            out[self.index[i]] = spla.spsolve((A.T @ A).tocsc(), A.T @ np.concatenate(rhs))
+            if m not in mine:
+                mine[m] = self.spaces[i].local(S, m)
+                theirs[m] = source.spaces[i].local(S, m)
+            vals, first = mine[m]
+            svals, sfirst = theirs[m]
+            order = self.spaces[i].order
+            c = x[source.index[i]]
+            w = hmin ** np.arange(m + 1)
+            # rows: (nu, point); columns: this field's coefficients
+            rows = np.repeat(np.arange((m + 1) * npts), order)
+            cols = np.tile((first[:, None] + np.arange(order)[None, :]).ravel(), m + 1)
+            data = (vals[:m + 1] * w[:, None, None]).ravel()
+            A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
+            scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
+            rhs = (np.einsum("nqa,qa->nq", svals[:m + 1], c[scols]) * w[:, None]).ravel()
+            At = A.T.tocsr()
+            out[self.index[i]] = spla.spsolve((At @ A).tocsc(), At @ rhs)
         if self.n_free:
             out[self.free_index] = x[source.free_index]
         return out

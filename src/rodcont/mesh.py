@@ -1,13 +1,14 @@
 """Meshes that follow the solution: error estimates, equidistribution, refinement.
 
-The error of a collocation solution is estimated by re-solving it on the mesh
-with every subinterval halved. The spline space of a mesh is contained in that
-of the halved mesh (the same knots, plus new ones), so the coarse solution is
+The error of a collocation solution is estimated by re-solving it in a richer
+space: one more Gauss point per subinterval (or every subinterval halved).
+The coarse spline space is contained in the richer one, so the solution is
 carried over exactly and *one* Newton step there gives the change of the
 solution to second order in it. The change of the quantities a user reads
-(stretch, unstressed length, torque, the centreline) is the estimate: the
-halved solution is more accurate by a factor ``2^(2k)`` at the mesh points
-and ``2^(k+1)`` or more in between, so the change is the coarse error.
+(stretch, unstressed length, torque, the parameter, the centreline) is the
+estimate: the richer solution is more accurate by a factor ``h^2`` (or
+``2^(2k)``) at the mesh points and more in between, so the change is the
+coarse error.
 
 A new mesh (:func:`adapted_mesh`) equidistributes a per-subinterval indicator
 (the residual between collocation points) with as many subintervals as the
@@ -78,14 +79,23 @@ class ErrorEstimator:
     """Estimated error of a solution of a :class:`rodcont.system.RodSystem` on its mesh.
 
     ``estimate(x, value)`` returns the largest of: the change of the stretch,
-    of ``l0 / L``, of the torque relative to ``max(|torque|, EI/L)``, and of the
-    centreline relative to ``L`` (on 8 points per subinterval) when every
-    subinterval is halved. The halved discretisation is built once per mesh.
+    of ``l0 / L``, of the torque relative to ``max(|torque|, EI/L)``, of the
+    parameter, and of the centreline relative to ``L`` (on 8 points per
+    subinterval) when the solution is re-solved in a richer space: one more
+    Gauss point per subinterval (``refine="k"``, the default; the B-splines of
+    order ``k + m`` with knots of multiplicity ``k`` span a subspace of those of
+    order ``k + 1 + m`` with multiplicity ``k + 1``), or every subinterval
+    halved (``refine="halve"``). Both give the same estimate to a few percent
+    (measured along the Gamma = 1 branch); ``k + 1`` costs less. The richer
+    discretisation is built once per mesh.
     """
 
-    def __init__(self, system, samples: int = 8):
+    def __init__(self, system, samples: int = 8, refine: str = "k"):
         self.system = system
-        self.fine = system.with_mesh(halved(system.disc.breakpoints))
+        if refine == "halve" or system.disc.k >= 7:
+            self.fine = system.with_mesh(halved(system.disc.breakpoints))
+        else:  # one more Gauss point per subinterval: the same knots, a richer space
+            self.fine = system.with_mesh(system.disc.breakpoints, k=system.disc.k + 1)
         b = system.disc.breakpoints
         t = np.linspace(0.0, 1.0, samples + 1)[:-1]
         self.S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])

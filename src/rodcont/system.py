@@ -66,11 +66,11 @@ class RodSystem:
     def gamma(self) -> float:
         return self.rod.gamma(self.base[1])
 
-    def with_mesh(self, breakpoints) -> "RodSystem":
-        """The same rod and parameters on another partition."""
+    def with_mesh(self, breakpoints, k: int | None = None) -> "RodSystem":
+        """The same rod and parameters on another partition (and, optionally, another ``k``)."""
         new = RodSystem.__new__(RodSystem)
         new.__dict__.update(self.__dict__)
-        new.disc = self.model.discretise(k=self.disc.k, breakpoints=np.asarray(breakpoints, float))
+        new.disc = self.model.discretise(k=self.disc.k if k is None else k, breakpoints=np.asarray(breakpoints, float))
         new.base = self.base.copy()
         return new
 

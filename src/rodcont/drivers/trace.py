@@ -120,9 +120,10 @@ class Accuracy:
     between two of them the error is taken proportional to the defect (the
     residual between collocation points, computed at every point anyway),
     with the ratio of the last measurement. It is measured again at every
-    special point, whenever the defect has doubled (or fallen sixteenfold)
-    since, every ``every`` points, and whenever the proportional guess comes
-    within a quarter of the adaptation threshold.
+    special point, whenever the defect has changed sixteenfold since (or
+    doubled, once the guess is within a fiftieth of the adaptation
+    threshold), every ``every`` points, and whenever the guess comes within
+    half of the threshold.
     """
 
     def __init__(self, max_error: float, every: int = 25):
@@ -158,10 +159,11 @@ class Accuracy:
         d = max(float(pt.data.get("defect", 0.0)), 1e-300)
         self.since += 1
         special = pt.kind not in (Kind.REGULAR,)
-        if (self.ratio is None or special or d > 2 * self.defect or d < self.defect / 16
-                or self.since >= self.every or self.ratio * d > self.trigger / 4):
+        e = self.ratio * d if self.ratio is not None else math.inf
+        drift = d > 16 * self.defect or d < self.defect / 16 if self.ratio is not None else True
+        if (special or drift or self.since >= self.every or e > self.trigger / 2
+                or (d > 2 * self.defect and e > self.trigger / 50)):
             return self.measure(system, pt)
-        e = self.ratio * d
         pt.data["error"] = e
         return e
 
