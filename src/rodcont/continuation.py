@@ -6,8 +6,11 @@ Protocol. A problem is any object with
 * ``tangent(x, p) -> (J, F_p)``: the Jacobian ``dF/dx`` (sparse or dense
   ``n x n``) and ``dF/dp`` (``n``-vector);
 
-optionally ``linearise(x, p) -> (F, J, F_p)`` doing both at once, and
-``accept(x, p)``, told of every accepted point. The tracker follows the curve
+optionally ``linearise(x, p) -> (F, J, F_p)`` doing both at once,
+``accept(x, p)``, told of every accepted point, and ``relative_change(x0, x1)``,
+a problem's own measure of how much a step changed the solution (a step
+above ``max_change`` is retried shorter: a feature the arclength norm hardly
+sees, such as a small deflection that doubles, is resolved). The tracker follows the curve
 ``(x(s), p(s))`` with the arclength of the weighted inner product
 (BifurcationKit's normalisation, so a step means the same on any mesh)::
 
@@ -125,6 +128,7 @@ class ContinuationSettings:
     max_angle: float = 0.3      # radians between successive tangents (and base tangent to secant)
     max_distance: float = 0.3   # corrector distance from the predictor / ds
     max_contraction: float = 0.5  # chord: each correction at most this fraction of the previous one
+    max_change: float = 0.5     # relative change per step of what the problem's relative_change measures
     target_angle: float = 0.15  # step control aims at this turn per step
     detect_folds: bool = True
     detect_fold_pairs: bool = True
@@ -171,6 +175,7 @@ class ContinuationSettings:
             (0 < self.max_angle < math.pi / 2 and 0 < self.target_angle <= self.max_angle,
              "need 0 < target_angle <= max_angle < pi/2"),
             (self.max_distance > 0, "max_distance must be positive"),
+            (self.max_change > 0, "max_change must be positive"),
             (0 < self.max_contraction < 1, "need 0 < max_contraction < 1"),
         ]
         for ok, msg in checks:
@@ -528,6 +533,7 @@ class Tracker:
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
         prev = math.inf
+        prev_res = math.inf
         for _ in range(max_iter or s.newton_max_iter):
             x, p = y[:-1], float(y[-1])
             F, J, Fp = self._linearise(x, p)
@@ -535,6 +541,10 @@ class Tracker:
             r = np.append(F, g)
             if not np.all(np.isfinite(r)):
                 return None, "the residual is not finite"
+            res = max_norm(r)
+            # converged to rounding: the residual no longer falls and the steps are tiny
+            stalled = res >= 0.5 * prev_res and prev <= math.sqrt(tol) * (1 + max_norm(y))
+            prev_res = res
             try:
                 lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
             except SingularMatrix:
@@ -544,10 +554,11 @@ class Tracker:
             iterations += 1
             dy = lu.solve(-r)
             size = max_norm(dy)
-            if not math.isfinite(size) or size > 2 * prev:
+            rounding = size <= math.sqrt(tol) * (1 + max_norm(y))
+            if not math.isfinite(size) or (size > 2 * prev and not rounding):
                 self.newton_iterations += iterations
                 return None, "the corrector diverged"
-            if size <= accept * (1 + max_norm(y)):
+            if size <= accept * (1 + max_norm(y)) or (stalled and rounding):
                 t = lu.solve(e)
                 tx, tp = t[:-1], float(t[-1])
                 norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
@@ -697,6 +708,13 @@ class Tracker:
             return None, "the tangent turns too fast"
         if s.detect_folds and s.detect_fold_pairs and FoldDetector.hidden_pair(base, new, ds, s.fold_tol):
             return None, "two folds in one step"
+        change = getattr(self.problem, "relative_change", None)
+        if change is not None:
+            # a change of the solution's shape that the arclength norm hardly sees (a small
+            # deflection doubling, or flipping onto a nearby branch): resolve it with shorter steps
+            info["change"] = float(change(base.x, new.x))
+            if info["change"] > s.max_change:
+                return None, "the solution changes too much in one step (another branch?)"
         info["angle"] = math.acos(min(1.0, cos_t))
         return new, info
 
@@ -708,6 +726,8 @@ class Tracker:
             factors.append(s.target_angle / info["angle"])
         if info.get("newton", 0) > 1:  # the chord did not converge: a step this long is enough
             factors.append(1.0)
+        if info.get("change", 0) > 0:
+            factors.append(0.5 * s.max_change / info["change"])
         if info.get("distance", 0) > 0:
             factors.append(math.sqrt(0.5 * s.max_distance / info["distance"]))
         f = max(s.shrink, min(factors))

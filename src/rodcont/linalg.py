@@ -96,21 +96,22 @@ class RowUpdatedLU:
 
 
 def permutation_sign(perm: np.ndarray) -> int:
-    """Sign of a permutation: ``(-1)^(n - number of cycles)``, walking only the moved entries."""
-    perm = np.asarray(perm)
-    moved = np.flatnonzero(perm != np.arange(perm.size))
-    seen = np.zeros(perm.size, bool)
-    parity = 0
-    for start in moved:
-        if seen[start]:
-            continue
-        j, length = start, 0
-        while not seen[j]:
-            seen[j] = True
-            j = perm[j]
-            length += 1
-        parity += length - 1
-    return -1 if parity % 2 else 1
+    """Sign of a permutation: ``(-1)^(n - number of cycles)``.
+
+    Cycles are counted by pointer doubling: every index learns the smallest
+    index on its cycle in ``log2(n)`` vectorised rounds.
+    """
+    p = np.asarray(perm, dtype=np.int64)
+    n = p.size
+    if n == 0:
+        return 1
+    label = np.arange(n)
+    step = p.copy()
+    for _ in range(max(1, int(np.ceil(np.log2(n))) + 1)):
+        label = np.minimum(label, label[step])
+        step = step[step]
+    cycles = int(np.count_nonzero(label == np.arange(n)))
+    return -1 if (n - cycles) % 2 else 1
 
 
 # --------------------------------------------------------------------------

@@ -66,6 +66,10 @@ class RodSystem:
     def gamma(self) -> float:
         return self.rod.gamma(self.base[1])
 
+    @property
+    def _transverse(self) -> np.ndarray:
+        return np.concatenate([self.disc.index[0], self.disc.index[1]])
+
     def with_mesh(self, breakpoints, k: int | None = None) -> "RodSystem":
         """The same rod and parameters on another partition (and, optionally, another ``k``)."""
         new = RodSystem.__new__(RodSystem)
@@ -105,6 +109,15 @@ class RodSystem:
         if self.param != "phi_L":
             out[self.param] = float(value)
         return out
+
+    def relative_change(self, x0, x1) -> float:
+        """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size (B-spline
+        coefficients, max norm; sizes below 1e-12 L count as 1e-12 L). A deflection that doubles
+        reads 0.5; one that flips sign reads 2."""
+        idx = self._transverse
+        a, b = x0[idx], x1[idx]
+        size = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-12 * self.rod.L)
+        return float(np.max(np.abs(b - a))) / size
 
     def interval_defect(self, x, value) -> np.ndarray:
         return self.model.output_evaluator(self.disc).interval_defect(x, self.params(value))

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..branch import Branch
 from ..continuation import ContinuationSettings, Event, Kind, Point, Stop, StopContinuation, StopReason, Tracker
-from ..mesh import ErrorEstimator, adapted_mesh
+from ..mesh import ErrorEstimator, adapted_mesh, halved
 from ..rod import RodParameters
 from ..system import SYSTEM_PARAMS, RodSystem, check_number
 from .solve import check_tension
@@ -292,6 +292,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     segments = 0
     start_attempts = 0
     remeshes_here = 0  # remeshes since the last stored point: more than a few means no progress
+    failed_remeshes = 0
     last_recorded: tuple | None = None  # (point, system) of the last stored point
     reason = StopReason(Stop.START_FAILED, "not started")
     steps = iterations = 0
@@ -305,11 +306,18 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             except StopContinuation as exc:
                 if last_recorded is None:
                     raise TraceError(str(exc)) from None
-                # the new mesh did not converge: go on, unadapted, from the last stored point
-                sysm = last_recorded[1]
-                pt = last_recorded[0]
-                seg = _Segment(sysm, pt.x, pt.p, (pt.tx, pt.tp))
-                o = _no_adapt(o)
+                # the adapted mesh did not converge: from the last stored point, halve every
+                # subinterval of its mesh instead (a nested space: the point carries over exactly)
+                failed_remeshes += 1
+                pt, old = last_recorded
+                if failed_remeshes > 3 or old.disc.N * 2 > o.N_max:
+                    reason = StopReason(Stop.EVENT, f"accuracy guard: no converged solution on a refined mesh "
+                                                    f"at p = {pt.p:.10g} ({exc})")
+                    break
+                new = old.with_mesh(halved(old.disc.breakpoints))
+                seg = _Segment(new, new.disc.transfer(pt.x, old.disc), pt.p,
+                               (new.disc.transfer(pt.tx, old.disc), pt.tp))
+                accuracy.reset()
                 continue
             steps += tracker.steps
             err = accuracy.measure(sysm, first)
@@ -323,9 +331,10 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                                      f"{err:.2g} > max_error = {o.max_error:g} with N = {sysm.disc.N}"
                                      + ("" if o.adapt else " (the mesh is fixed: raise N or let it adapt)")
                                      + ("" if sysm.disc.N < o.N_max else f" (N_max = {o.N_max} reached)"))
+                why = (f"N_max = {o.N_max} reached" if sysm.disc.N >= o.N_max or not o.adapt
+                       else f"{start_attempts} refinements did not bring it down")
                 reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
-                                                f"{o.max_error:g} and the mesh cannot be refined further "
-                                                f"(N = {sysm.disc.N}, N_max = {o.N_max})")
+                                                f"{o.max_error:g} at p = {first.p:.10g} (N = {sysm.disc.N}; {why})")
                 break
             start_attempts = 0
             if last_recorded is None:
@@ -399,12 +408,6 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         branch.elapsed += time.perf_counter() - t_start
         recorder.sync()
     return branch
-
-
-def _no_adapt(o: TraceOptions) -> TraceOptions:
-    d = o.as_dict()
-    d["adapt"] = False
-    return TraceOptions(**d)
 
 
 def _bound_at_start(pt: Point, p_min: float, p_max: float) -> StopReason | None:
