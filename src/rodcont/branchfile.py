@@ -315,12 +315,15 @@ class BranchWriter:
                 self.f.attrs["stop_reason"] = stop_reason
             self.flush()
         finally:
+            # whatever happened (a full disk), the memory file is dropped and the lock released:
+            # the target keeps its last published version
             self.closed = True
             try:
                 self.f.close()
-            finally:
-                if self.lock is not None:
-                    self.lock.release()
+            except (OSError, RuntimeError, ValueError):  # an in-memory file: nothing on disk to lose
+                pass
+            if self.lock is not None:
+                self.lock.release()
 
 
 def _attr(v):
@@ -525,6 +528,8 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
             raise BranchFileError(f"{where}: damaged branch file (/branch/{req} missing)")
     n = min(len(v) for v in branch.values())
     branch = {k: v[:n] for k, v in branch.items()}
+    if np.asarray(branch["kind"]).dtype.kind not in "OSU":
+        raise BranchFileError(f"{where}: damaged branch file (/branch/kind does not hold names)")
     branch["kind"] = np.array([_plain(k) for k in branch["kind"]], dtype=object).astype(str)
     X = np.asarray(branch["coefficients"], float)
     if X.ndim != 2:

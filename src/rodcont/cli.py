@@ -127,7 +127,10 @@ def _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
 
 def _rod(w, EI, GJ, EA, L):
     from .rod import RodParameters
-    return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L)
+    try:
+        return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L)
+    except (ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
 
 
 def _load(path, branch=None):

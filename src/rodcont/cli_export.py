@@ -171,8 +171,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
         raise _user_error("give --point or --all, not both")
     if not all_points and point is None:
         raise _user_error("which point? give --point I|F<j>|BP<j> (or --all for the whole branch)")
-    fmt = _format(output, fmt, all_points)
     _check_output(output, [path])
+    fmt = _format(output, fmt, all_points)
     data = _pick_branch(path, diagram, spec_branch, branch)
     from .branchfile import BranchFileError
     from .export import ExportError, export_branch, export_point, series_dir
@@ -193,7 +193,7 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
         return
     try:
         i = data.resolve(point)
-        export_point(data, i, output, fmt, samples, grid)
+        export_point(data, point.strip(), output, fmt, samples, grid)
     except (ExportError, BranchFileError) as exc:
         raise _user_error(str(exc)) from None
     click.echo(f"wrote {output} (point {i}, Φ = {float(data.branch['phi_L'][i]):.10g}, {samples} samples)")

@@ -632,6 +632,9 @@ class Tracker:
         if not s.p_min <= pt.p <= s.p_max:
             return StopReason(Stop.AT_START, f"the start p = {pt.p:.10g} is outside the bounds "
                                              f"[{s.p_min:g}, {s.p_max:g}]")
+        if (pt.p >= s.p_max and pt.tp > 0) or (pt.p <= s.p_min and pt.tp < 0):
+            return StopReason(Stop.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
+                                          f"{s.p_max if pt.tp > 0 else s.p_min:g} reached at the start")
         for ev in self.events:
             if ev.action in ("stop", "segment") and ev.function(pt) < 0:
                 return StopReason(Stop.AT_START if ev.action == "stop" else Stop.SEGMENT,

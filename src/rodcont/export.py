@@ -71,6 +71,7 @@ LAYOUT = (
 FIELD_NAMES = tuple(name for name, _, _ in LAYOUT)
 MAX_SAMPLES = 1_000_000
 _QUAD = 8  # Gauss points per piece for the unstressed arclength
+_CHUNK = 8192  # points evaluated at once
 
 
 class ExportError(ValueError):
@@ -111,10 +112,19 @@ def _jets(disc, x, S):
     return (disc.jet_matrix(S) @ x).reshape(Jet.SIZE, np.size(S))
 
 
+def _chunks(n: int):
+    """Slices of at most ``_CHUNK`` points: memory stays bounded for any number of samples."""
+    return [slice(a, min(a + _CHUNK, n)) for a in range(0, n, _CHUNK)]
+
+
 def _integrand(model, disc, x, p, S):
     """``ds/dS = n / alpha`` at ``S``."""
-    _, alpha, n, _ = model._axial_quantities(S, _jets(disc, x, S), p)
-    return n / alpha
+    S = np.asarray(S, float)
+    out = np.empty(S.size)
+    for c in _chunks(S.size):
+        _, alpha, n, _ = model._axial_quantities(S[c], _jets(disc, x, S[c]), p)
+        out[c] = n / alpha
+    return out
 
 
 def unstressed_arclength(model, disc, x, p, S) -> np.ndarray:
@@ -161,7 +171,6 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     (``grid="S"``) or uniform in ``s`` over ``[0, l0]`` (``grid="s"``).
     Returns a dict of arrays (see the module docstring for names and meaning).
     """
-    from .rod import _cross
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 2 <= samples <= MAX_SAMPLES:
         raise ExportError(f"samples must be an integer in 2..{MAX_SAMPLES}, got {samples!r}")
     if grid not in ("S", "s"):
@@ -174,8 +183,16 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     x = pt["x"]
     L = float(disc.breakpoints[-1])
     S = np.linspace(0.0, L, int(samples)) if grid == "S" else _grid_in_s(model, disc, x, p, int(samples))
-    EI, GJ, EA = p[3], p[4], p[5]
+    parts = [_pointwise(model, disc, x, p, S[c]) for c in _chunks(S.size)]
+    out = {key: np.concatenate([q[key] for q in parts]) for key in parts[0]}
+    out["s"] = unstressed_arclength(model, disc, x, p, S)
+    return {key: out[key] for key in FIELD_NAMES}
 
+
+def _pointwise(model, disc, x, p, S) -> dict:
+    """Every field but ``s`` at the points ``S`` (the model's centreline, directors, force, torque)."""
+    from .rod import _cross
+    EI, GJ = p[3], p[4]
     r = model.centreline(disc, x, S)
     D = model.directors(disc, x, S)
     d1, d2, d3 = D[0], D[1], D[2]
@@ -183,15 +200,13 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     z = _jets(disc, x, S)
     m, alpha, n, _ = model._axial_quantities(S, z, p)
     r1, r2, _ = model._frame_jets(z)
-    uperp = model.frame.T @ (alpha * _cross(r1, r2) / n**3)  # d3 x d3_s, global
+    uperp = model.frame.T @ (alpha * _cross(r1, r2) / n**3)  # d3 x d3_s, global components
     u1, u2 = (uperp * d1).sum(axis=0), (uperp * d2).sum(axis=0)
-    u3 = m / GJ
     M = EI * (u1 * d1 + u2 * d2) + m * d3
-    s = unstressed_arclength(model, disc, x, p, S)
     return dict(
-        S=S, s=s, x=r[0].copy(), y=r[1].copy(), z=r[2].copy(),
+        S=S, x=r[0].copy(), y=r[1].copy(), z=r[2].copy(),
         d1=d1.T.copy(), d2=d2.T.copy(), d3=d3.T.copy(),
-        u1=u1, u2=u2, u3=u3, kappa=np.hypot(u1, u2),
+        u1=u1, u2=u2, u3=m / GJ, kappa=np.hypot(u1, u2),
         F=F.T.copy(), N1=(F * d1).sum(axis=0), N2=(F * d2).sum(axis=0), N=(F * d3).sum(axis=0),
         M=M.T.copy(), M1=EI * u1, M2=EI * u2, M3=m,
         alpha=alpha,
@@ -204,12 +219,14 @@ def point_meta(data, label, samples: int, grid: str = "S") -> dict:
     i = data.resolve(label)
     p = point_parameters(data, i)
     rod = data.rod
-    meta = dict(rodcont_version=__version__, source=os.path.abspath(data.path), branch=data.name or "",
-                point=int(i), label=str(label), kind=str(data.branch["kind"][i]),
+    meta = dict(rodcont_version=__version__, source=os.path.abspath(data.path))
+    if data.name:
+        meta["branch"] = data.name
+    meta.update(point=int(i), label=str(label), kind=str(data.branch["kind"][i]),
                 phi_L=float(p[0]), T=float(p[1]), w=float(p[2]), EI=float(p[3]), GJ=float(p[4]), EA=float(p[5]),
                 L=float(rod.L), gamma=float(p[1] / (p[2] * rod.L)) if p[2] > 0 else float("nan"),
                 weight_direction=" ".join(repr(float(c)) for c in rod.weight_direction),
-                samples=int(samples), grid=grid)
+                samples=int(samples), grid=grid, param=data.param)
     for name in ("stretch", "torque", "l0", "helical_waves", "min_alignment", "error"):
         if name in data.branch:
             v = data.branch[name][i]
@@ -225,20 +242,27 @@ def stack_fields(series: list[dict]) -> dict:
 # --------------------------------------------------------------------------
 # Writers
 # --------------------------------------------------------------------------
-def _publish(path: str, payload: bytes) -> None:
-    """Write ``payload`` to a temporary file beside ``path`` and rename it over ``path``."""
+def _publish(path: str, payload) -> None:
+    """Write ``payload`` (bytes, or an iterable of str pieces) to a temporary file beside ``path``
+    and rename it over ``path``: the file appears whole or not at all."""
     real = os.path.realpath(path)
     tmp = os.path.join(os.path.dirname(real), f".{os.path.basename(real)}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:
-            fh.write(payload)
+            if isinstance(payload, (bytes, bytearray)):
+                fh.write(payload)
+            else:
+                for piece in payload:
+                    fh.write(piece.encode())
         os.replace(tmp, real)
     except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
         raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if os.path.exists(tmp):  # failed or interrupted: leave nothing behind
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
 
 
 def _columns(fields: dict):
@@ -283,8 +307,12 @@ def write_csv(fields: dict, path: str, meta: dict | None = None) -> None:
     lines.append("# units: lengths in the unit of L, forces in the unit of EA; per column:")
     lines.append("# unit: " + ",".join(units))
     lines.append(",".join(names))
-    body = "\n".join(",".join(repr(float(v)) for v in row) for row in table)
-    _publish(path, ("\n".join(lines) + "\n" + body + "\n").encode())
+
+    def pieces():
+        yield "\n".join(lines) + "\n"
+        for a in range(0, table.shape[0], 4096):
+            yield "".join(",".join(map(repr, row)) + "\n" for row in table[a:a + 4096].tolist())
+    _publish(path, pieces())
 
 
 def _vtk_array(name: str | None, a: np.ndarray, indent: str, vtype: str = "Float64") -> str:
@@ -349,7 +377,7 @@ def write_vtp(fields: dict, path: str, meta: dict | None = None) -> None:
     out.append(_vtk_array("offsets", np.array([npts]), "        ", "Int64"))
     out.append("      </Lines>\n")
     out.append("    </Piece>\n  </PolyData>\n</VTKFile>\n")
-    _publish(path, "".join(out).encode())
+    _publish(path, out)
 
 
 def write_pvd(entries: list[tuple[float, str]], path: str) -> None:

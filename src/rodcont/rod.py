@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .collocation import BVProblem, Collocation
+from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
 FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
@@ -76,59 +77,6 @@ def _cross2(a, b):
 
 
 # --------------------------------------------------------------------------
-# Reference curves
-# --------------------------------------------------------------------------
-class ReferenceCurve:
-    """Interface of a unit-speed reference curve ``R(S)``, ``S in [0, L]``, with frame ``K1, K2, K3 = R'``.
-
-    ``centreline_jets(S, D1, D2)`` returns ``r, r', r'', r'''`` (each ``(3, npts)``)
-    for ``r = R + D1 K1 + D2 K2`` given the jets ``D1, D2`` (``(4, npts)``:
-    value and three derivatives). ``frame(S)`` returns ``K1, K2, K3``
-    (each ``(3, npts)``). A curved conduit axis implements both; the rod
-    model then also needs the twist of the pole ``K3(S)`` (not yet written,
-    so the model accepts only curves with ``constant_frame`` True).
-    """
-
-    length: float
-    constant_frame: bool = False
-
-    def centreline_jets(self, S, D1, D2):  # pragma: no cover - interface
-        raise NotImplementedError
-
-    def frame(self, S):  # pragma: no cover - interface
-        raise NotImplementedError
-
-
-class StraightReference(ReferenceCurve):
-    """``R(S) = origin + S K3`` with constant frame (default ``K1 = e2, K2 = e3, K3 = e1``)."""
-
-    constant_frame = True
-
-    def __init__(self, length: float = 1.0, K1=(0.0, 1.0, 0.0), K2=(0.0, 0.0, 1.0), origin=(0.0, 0.0, 0.0)):
-        if not (np.isfinite(length) and length > 0):
-            raise ValueError(f"reference length L must be positive, got {length}")
-        self.length = float(length)
-        self.K1 = np.asarray(K1, float)
-        self.K2 = np.asarray(K2, float)
-        self.K3 = np.cross(self.K1, self.K2)
-        if not np.allclose([self.K1 @ self.K1, self.K2 @ self.K2, self.K1 @ self.K2], [1, 1, 0], atol=1e-14):
-            raise ValueError("K1, K2 must be orthonormal")
-        self.origin = np.asarray(origin, float)
-
-    def centreline_jets(self, S, D1, D2):
-        K1, K2, K3 = self.K1[:, None], self.K2[:, None], self.K3[:, None]
-        r = self.origin[:, None] + K3 * S + K1 * D1[0] + K2 * D2[0]
-        r1 = K3 + K1 * D1[1] + K2 * D2[1]
-        r2 = K1 * D1[2] + K2 * D2[2]
-        r3 = K1 * D1[3] + K2 * D2[3]
-        return r, r1, r2, r3
-
-    def frame(self, S):
-        n = np.size(S)
-        return tuple(np.repeat(K[:, None], n, axis=1) for K in (self.K1, self.K2, self.K3))
-
-
-# --------------------------------------------------------------------------
 # Rod parameters
 # --------------------------------------------------------------------------
 @dataclass
@@ -149,14 +97,17 @@ class RodParameters:
     weight_direction: tuple = (0.0, 0.0, -1.0)
 
     def __post_init__(self):
-        for name in ("EI", "GJ", "EA", "L"):
+        for name in ("EI", "GJ", "EA", "L", "w"):
             v = getattr(self, name)
-            if not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a positive number, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise TypeError(f"{name} must be a number, got {v!r}")
+            if not math.isfinite(v) or v < 0 or (v == 0 and name != "w"):
+                raise ValueError(f"{name} must be a {'non-negative' if name == 'w' else 'positive'} number, got {v!r}")
+            # products of a few of them must stay finite: keep each within 1e-100 .. 1e100
+            if v != 0 and not 1e-100 <= v <= 1e100:
+                raise ValueError(f"{name} = {v!r} is outside the range rodcont computes with (1e-100 .. 1e100): "
+                                 f"change units")
             setattr(self, name, float(v))
-        if not isinstance(self.w, (int, float, np.floating, np.integer)) or not math.isfinite(self.w) or self.w < 0:
-            raise ValueError(f"w must be a non-negative number, got {self.w!r}")
-        self.w = float(self.w)
         g = np.asarray(self.weight_direction, float)
         if g.shape != (3,) or not np.isfinite(g).all() or np.linalg.norm(g) == 0:
             raise ValueError("weight_direction must be a non-zero 3-vector")

@@ -36,7 +36,6 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
     ``queue`` (optional) receives ``(gamma, n_points, phi_L, stretch)`` after every point.
     A failure is returned as a summary with ``error`` set, not raised.
     """
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     n = [0]
 
     def report(pt):
@@ -64,6 +63,12 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
                     stop_reason=f"failed: {exc}", elapsed=time.perf_counter() - t0, error=str(exc))
 
 
+def _worker_init() -> None:
+    """Worker processes: one BLAS thread each (the pool itself is the parallelism)."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+
 def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k: int = 5, jobs: int | None = None,
           executor: Executor | None = None, progress: bool = False, plot: bool = True, diagram: bool = False,
           overwrite: bool = False, **options) -> dict:
@@ -77,6 +82,9 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     if not isinstance(gammas, list) or not gammas:
         raise ValueError("sweep needs at least one Gamma")
     gammas = [check_number("gamma", g) for g in gammas]
+    rod_ = rod or RodParameters()
+    for g in gammas:
+        check_number("T = gamma w L", rod_.tension(g))
     names = [gamma_name(g) for g in gammas]
     if len(set(names)) != len(names):
         raise ValueError("Gamma values must be distinct")
@@ -99,7 +107,7 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     jobs = jobs or os.cpu_count() or 1
     queue = manager = None
     if own:
-        executor = ProcessPoolExecutor(max_workers=min(jobs, len(gammas)))
+        executor = ProcessPoolExecutor(max_workers=min(jobs, len(gammas)), initializer=_worker_init)
         if progress:
             import multiprocessing
             manager = multiprocessing.Manager()

@@ -340,8 +340,6 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             if last_recorded is None:
                 first.arclength = 0.0
                 why = tracker._check_start(first)
-                if why is None:
-                    why = _bound_at_start(first, p_min, p_max)
                 if why is not None:
                     raise TraceError(f"cannot start there: {why.message}")
                 recorder.add(first, sysm.disc.breakpoints)
@@ -408,13 +406,6 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         branch.elapsed += time.perf_counter() - t_start
         recorder.sync()
     return branch
-
-
-def _bound_at_start(pt: Point, p_min: float, p_max: float) -> StopReason | None:
-    if (pt.p >= p_max and pt.tp > 0) or (pt.p <= p_min and pt.tp < 0):
-        return StopReason(Stop.AT_START, f"the start p = {pt.p:.10g} is on a bound of [{p_min:g}, {p_max:g}] "
-                                         f"and the branch leaves it")
-    return None
 
 
 def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
