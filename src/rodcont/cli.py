@@ -769,6 +769,15 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
         sys.exit(1)
 
 
+def _register_extra_commands():
+    from .cli_export import animate_cmd, export_cmd
+    main_group.add_command(export_cmd)
+    main_group.add_command(animate_cmd)
+
+
+_register_extra_commands()
+
+
 # --------------------------------------------------------------------------
 # Entry point
 # --------------------------------------------------------------------------

@@ -191,16 +191,19 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
 
 def _pointwise(model, disc, x, p, S) -> dict:
     """Every field but ``s`` at the points ``S`` (the model's centreline, directors, force, torque)."""
-    from .rod import _cross
-    EI, GJ = p[3], p[4]
+    from .rod import Jet
+    EI, GJ, EA = p[3], p[4], p[5]
     r = model.centreline(disc, x, S)
     D = model.directors(disc, x, S)
     d1, d2, d3 = D[0], D[1], D[2]
     F = model.force(disc, x, S)
     z = _jets(disc, x, S)
-    m, alpha, n, _ = model._axial_quantities(S, z, p)
-    r1, r2, _ = model._frame_jets(z)
-    uperp = model.frame.T @ (alpha * _cross(r1, r2) / n**3)  # d3 x d3_s, global components
+    m = model._axial_quantities(S, z, p)[0]  # the torque GJ u3, as the model defines it
+    # r', r'' in global components from the reference curve (whatever its frame)
+    _, r1, r2, _ = model.curve.centreline_jets(S, z[list(Jet.D1)], z[list(Jet.D2)])
+    n = np.sqrt((r1 * r1).sum(axis=0))
+    alpha = 1.0 + (F * d3).sum(axis=0) / EA
+    uperp = alpha * np.cross(r1, r2, axis=0) / n**3  # d3 x d3_s
     u1, u2 = (uperp * d1).sum(axis=0), (uperp * d2).sum(axis=0)
     M = EI * (u1 * d1 + u2 * d2) + m * d3
     return dict(

@@ -113,7 +113,11 @@ class RodSystem:
     def relative_change(self, x0, x1) -> float:
         """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size (B-spline
         coefficients, max norm; sizes below 1e-12 L count as 1e-12 L). A deflection that doubles
-        reads 0.5; one that flips sign reads 2."""
+        reads 0.5; one that flips sign reads 2. Only for traces in ``phi_L`` (where a nearly
+        symmetric rod passes close to other branches); other parameters, such as the weight
+        homotopy that grows a deflection from zero, read 0."""
+        if self.param != "phi_L":
+            return 0.0
         idx = self._transverse
         a, b = x0[idx], x1[idx]
         size = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-12 * self.rod.L)
@@ -193,10 +197,24 @@ def point_system(data, i) -> RodSystem:
     """
     pt = data.point(i)
     b = np.asarray(pt["breakpoints"], float)
-    rod = data.rod
-    key = (tuple(sorted(rod.as_dict().items())), float(data.tension), b.tobytes(), int(data.attrs["k"]))
+    rod, T = data.rod, data.tension
+    param = data.param
+    if param in ("EI", "GJ", "EA", "w") and param in pt:  # a trace in a rod parameter: the point's own value
+        rod = RodParameters(**dict(rod.as_dict(), **{param: float(pt[param])}))
+    elif param == "T" and "T" in pt:
+        T = float(pt["T"])
+    elif param == "gamma" and "gamma" in pt:
+        T = float(pt["gamma"]) * rod.w * rod.L
+    key = (tuple(sorted(rod.as_dict().items())), float(T), b.tobytes(), int(data.attrs["k"]))
     if key not in _POINT_SYSTEMS:
         if len(_POINT_SYSTEMS) > 32:
             _POINT_SYSTEMS.clear()
-        _POINT_SYSTEMS[key] = RodSystem(rod, T=data.tension, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b)
-    return _POINT_SYSTEMS[key]
+        _POINT_SYSTEMS[key] = RodSystem(rod, T=T, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b)
+    system = _POINT_SYSTEMS[key]
+    if data.param == "phi_L" or "phi_L_fixed" not in data.attrs:
+        return system
+    out = RodSystem.__new__(RodSystem)  # a trace at fixed phi_L: that phi_L in the base
+    out.__dict__.update(system.__dict__)
+    out.base = system.base.copy()
+    out.base[0] = float(pt["phi_L"])
+    return out

@@ -151,10 +151,14 @@ def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesse
     found: list[np.ndarray] = []
     p = system.params(phi_L) if system.param == "phi_L" else system.base
     n = system.disc.size
+    rng = np.random.default_rng(2015)
     for guess in guesses:
         if len(found) >= max_new:
             break
         x = np.asarray(guess, float).copy()
+        # a guess on a known root is where deflation is infinite: start beside it
+        if any(max_norm(x - r) <= 1e-8 * (1 + max_norm(r)) for r in roots):
+            x = x * (1 + 1e-2 * rng.standard_normal(n))
         ok = False
         for _ in range(max_iter):
             F, J, _ = system.disc.linearise(x, p)
@@ -167,7 +171,7 @@ def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesse
             g = np.zeros(n)
             for r in roots:
                 d = x - r
-                nd2 = float(d @ d) / n
+                nd2 = max(float(d @ d) / n, 1e-300)
                 m = nd2 ** (-power / 2) + shift
                 # d/dx log(|d|^-p + shift) = -p |d|^(-p-2) d / n / (|d|^-p + shift)
                 g += -power * nd2 ** (-power / 2 - 1) * d / n / m
