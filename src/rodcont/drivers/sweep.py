@@ -49,7 +49,8 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
             from .diagram import diagram as run_diagram
             d = run_diagram(gamma, RodParameters(**rod), out=path, callback=report, **options)
             folds = d.folds
-            return dict(gamma=gamma, path=path, points=sum(len(b) for b in d.branches), branches=len(d.branches),
+            return dict(gamma=gamma, path=path, points=sum(len(b.branch) for b in d.branches),
+                        branches=len(d.branches),
                         folds=len(folds), first_fold=folds[0]["phi_L"] if folds else None,
                         stop_reason=f"{len(d.branches)} branches", elapsed=time.perf_counter() - t0, error=None)
         from .trace import trace
