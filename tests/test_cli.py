@@ -38,7 +38,7 @@ def assert_one_line_error(code, out, err):
 def test_solve_prints_name_value_pairs(capsys):
     code, out, err = run(["solve", "--gamma", "1", "--phi", "10"], capsys)
     assert code == 0
-    values = dict(line.split() for line in out.strip().splitlines())
+    values = dict(line.split() for line in out.strip().splitlines() if not line.startswith("#"))
     for name in ("stretch", "torque", "l0", "helical_waves", "min_alignment", "newton_iterations", "residual_norm"):
         assert name in values
     assert float(values["stretch"]) == pytest.approx(3.1059074e-3, abs=1e-10)

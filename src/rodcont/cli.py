@@ -46,16 +46,89 @@ def _number(name, positive=False, nonnegative=False):
 
 ROD_OPTION_NAMES = ("N", "k", "w", "EI", "GJ", "EA", "L")
 
+# --config FILE.toml: sections and the options their keys set (any trace option goes in [trace])
+CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction"), "loads": ("gamma", "T", "phi"),
+                   "mesh": ("N", "k", "N_max", "uniform")}
+
+
+def _load_config(ctx, param, value):
+    """Read a TOML problem file into the command's defaults (options on the command line still win)."""
+    if value is None:
+        return None
+    import tomllib
+    try:
+        with open(value, "rb") as fh:
+            doc = tomllib.load(fh)
+    except OSError as exc:
+        raise click.BadParameter(f"cannot read {value}: {exc.strerror}", param_hint="--config") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise click.BadParameter(f"{value} is not valid TOML ({exc})", param_hint="--config") from None
+    names = {p.name for p in ctx.command.params}
+    defaults = {}
+    for section, table in doc.items():
+        if not isinstance(table, dict):
+            raise click.BadParameter(f"{value}: '{section}' must be a section ([{section}])", param_hint="--config")
+        allowed = CONFIG_SECTIONS.get(section)
+        if allowed is None and section != "trace":
+            raise click.BadParameter(f"{value}: unknown section [{section}] (sections: rod, loads, mesh, trace)",
+                                     param_hint="--config")
+        for key, v in table.items():
+            name = key.replace("-", "_")
+            if (allowed is not None and name not in allowed) or name not in names:
+                raise click.BadParameter(f"{value}: [{section}] {key} is not an option of this command",
+                                         param_hint="--config")
+            if name == "weight_direction" and isinstance(v, list):
+                v = ",".join(str(u) for u in v)
+            defaults[name] = v
+    ctx.default_map = dict(ctx.default_map or {}, **defaults)
+    ctx.meta["rodcont.config_file"] = value
+    return value
+
+
+def _weight_direction(ctx, param, value):
+    if value is None:
+        return (0.0, 0.0, -1.0)
+    try:
+        v = tuple(float(u) for u in str(value).replace(" ", "").split(","))
+    except ValueError:
+        raise click.BadParameter(f"expects X,Y,Z (three numbers), got {value!r}", param_hint="--weight-direction") \
+            from None
+    if len(v) != 3 or not all(math.isfinite(u) for u in v) or not any(v):
+        raise click.BadParameter(f"expects a non-zero direction X,Y,Z, got {value!r}",
+                                 param_hint="--weight-direction")
+    return v
+
 
 def rod_options(f):
-    """Rod and mesh options shared by every command that builds a rod (paper values by default)."""
+    """Rod, load and mesh options shared by every command that builds a rod (paper values by default).
+
+    ``--T`` (the tension itself), ``--weight-direction`` and ``--config`` are
+    taken here and kept on the click context for :func:`_rod` and :func:`_tension`.
+    """
+    import functools
+
+    @functools.wraps(f)
+    def wrapper(*args, T=None, weight_direction=(0.0, 0.0, -1.0), config=None, **kwargs):
+        ctx = click.get_current_context()
+        ctx.meta["rodcont.T"] = T
+        ctx.meta["rodcont.weight_direction"] = weight_direction
+        _echo_config(ctx)
+        return f(*args, **kwargs)
+
     opts = [
+        click.option("--config", type=click.Path(dir_okay=False), default=None, is_eager=True,
+                     callback=_load_config, expose_value=True,
+                     help="TOML file holding the problem ([rod], [loads], [mesh], [trace]); options override it"),
+        click.option("--T", "T", type=float, default=None, callback=_number("--T"),
+                     help="the tension itself (instead of --gamma; also with --w 0)"),
         click.option("--N", "N", type=click.IntRange(1, 100000), default=15, show_default=True,
                      help="number of subintervals of the (first) mesh"),
         click.option("--k", "k", type=click.IntRange(1, 7), default=5, show_default=True,
                      help="Gauss collocation points per subinterval"),
         click.option("--w", "w", type=float, default=10.0, show_default=True, callback=_number("--w", nonnegative=True),
                      help="weight per unit unstressed length (>= 0)"),
+        click.option("--weight-direction", default=None, callback=_weight_direction,
+                     help="direction of the weight X,Y,Z [default: 0,0,-1]; the span runs along e1"),
         click.option("--EI", "EI", type=float, default=1.0, show_default=True, callback=_number("--EI", positive=True),
                      help="bending stiffness"),
         click.option("--GJ", "GJ", type=float, default=0.75, show_default=True, callback=_number("--GJ", positive=True),
@@ -66,8 +139,51 @@ def rod_options(f):
                      help="span (length of the straight reference curve)"),
     ]
     for opt in reversed(opts):
-        f = opt(f)
-    return f
+        wrapper = opt(wrapper)
+    return wrapper
+
+
+_CONFIG_SKIP = {"config", "quiet", "out", "out_dir", "overwrite", "start", "output", "points", "files", "file",
+                "spec", "debug", "max_defect"}
+
+
+def config_toml(params: dict) -> str:
+    """The effective problem as a TOML document (what ``--config`` reads back)."""
+    rows = {"rod": [], "loads": [], "mesh": [], "trace": []}
+    for name, v in params.items():
+        if name in _CONFIG_SKIP or v is None or v == ():
+            continue
+        section = next((s for s, keys in CONFIG_SECTIONS.items() if name in keys), "trace")
+        if isinstance(v, tuple):
+            v = list(v)
+        if isinstance(v, bool):
+            text = "true" if v else "false"
+        elif isinstance(v, str):
+            text = '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        elif isinstance(v, list):
+            text = "[" + ", ".join(repr(float(u)) if isinstance(u, float) else str(u) for u in v) + "]"
+        else:
+            text = repr(v)
+        rows[section].append(f"{name} = {text}")
+    out = []
+    for section, lines in rows.items():
+        if lines:
+            out.append(f"[{section}]")
+            out.extend(lines)
+    return "\n".join(out)
+
+
+def _echo_config(ctx) -> None:
+    """Every command says, first, the problem it runs (as TOML comment lines on stdout)."""
+    params = dict(ctx.params)
+    params["T"] = ctx.meta.get("rodcont.T")
+    params["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
+    text = config_toml(params)
+    ctx.meta["rodcont.config"] = text
+    src = ctx.meta.get("rodcont.config_file")
+    click.echo(f"# rodcont {ctx.info_name}" + (f" (--config {src})" if src else "") + ": the problem as run")
+    for line in text.splitlines():
+        click.echo(f"#   {line}")
 
 
 def trace_options(f):
@@ -127,10 +243,31 @@ def _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
 
 def _rod(w, EI, GJ, EA, L):
     from .rod import RodParameters
+    wd = click.get_current_context().meta.get("rodcont.weight_direction", (0.0, 0.0, -1.0))
     try:
-        return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L)
+        return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L, weight_direction=wd)
     except (ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
+
+
+def _tension(gamma, rod):
+    """``(gamma, T)``: exactly one of --gamma and --T; Gamma needs a weight."""
+    T = click.get_current_context().meta.get("rodcont.T")
+    if T is not None and gamma is not None:
+        raise UserError("give --gamma or --T, not both")
+    if T is None and gamma is None:
+        raise UserError("--gamma (T = gamma w L) or --T is required")
+    if T is None:
+        if rod.w == 0:
+            raise UserError("--gamma needs a weight (--w > 0): give the tension with --T")
+        T = rod.tension(gamma)
+        if not math.isfinite(T):
+            raise UserError(f"--gamma {gamma:g} gives a tension that is not finite")
+    return gamma, T
+
+
+def _meta():
+    return {"config": click.get_current_context().meta.get("rodcont.config", "")}
 
 
 def _load(path, branch=None):
@@ -279,7 +416,7 @@ def main_group(ctx, debug):
 
 
 @main_group.command()
-@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@click.option("--gamma", type=float, default=None, callback=_number("--gamma"), help="tension ratio T / (w L) (or --T)")
 @click.option("--phi", "phi", type=float, required=True, callback=_number("--phi"), help="end rotation Phi [rad]")
 @click.option("--load-step", type=float, default=0.5, show_default=True, callback=_number("--load-step", positive=True),
               help="Phi increment of the natural continuation from 0")
@@ -292,8 +429,9 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     """
     from .drivers.solve import ConvergenceError, solve_equilibrium
     rod = _rod(w, EI, GJ, EA, L)
+    gamma, T = _tension(gamma, rod)
     try:
-        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step)
+        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T)
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     o = eq.outputs
@@ -353,7 +491,8 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         data, pt, label = _point_spec(start)
         if data.param != "phi_L" and data.attrs.get("kind") == "fold_curve":
             raise UserError(f"{data.path} is a fold curve in {data.param}, not a branch: it cannot start a trace")
-        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L")
+        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L") + (["T"] if click.get_current_context().meta.get(
+            "rodcont.T") is not None else [])
         if changed:
             names = ", ".join("--" + n for n in changed)
             raise UserError(f"{names} differ from the start file's; a restart keeps its rod and tension: to change "
@@ -393,8 +532,10 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         if switch:
             raise UserError("--switch needs --start FILE.h5:BP<j>")
         rod = _rod(w, EI, GJ, EA, L)
-        if gamma is None:
-            raise UserError("--gamma is required (or --start FILE.h5:POINT)")
+        if gamma is None and click.get_current_context().meta.get("rodcont.T") is None:
+            raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
+        gamma, T = _tension(gamma, rod)
+        gamma = None
         if from_straight is not None:
             extra["from_straight"] = from_straight
             if param != "phi_L":
@@ -402,6 +543,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         elif param != "phi_L":
             raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
         _check_out(out, [], overwrite)
+    extra["meta"] = _meta()
     _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 
 
@@ -480,7 +622,7 @@ def _fold_table(data):
 
 
 @main_group.command()
-@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@click.option("--gamma", type=float, default=None, callback=_number("--gamma"), help="tension ratio T / (w L) (or --T)")
 @click.option("--phi-max", type=float, default=40.0, show_default=True, callback=_number("--phi-max"))
 @click.option("--phi-min", type=float, default=0.0, show_default=True, callback=_number("--phi-min"))
 @rod_options
@@ -493,15 +635,14 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
     """
     from .drivers.diagram import critical_twists
     rod = _rod(w, EI, GJ, EA, L)
-    if rod.w == 0:
-        raise UserError("--gamma needs a weight (--w > 0): T = gamma w L")
-    T = rod.tension(gamma)
+    gamma, T = _tension(gamma, rod)
     try:
         crit = critical_twists(rod, T, phi_max=phi_max, phi_min=phi_min, k=k)
     except (ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     alpha = 1 + T / EA
-    click.echo(f"# straight weightless rod, T = {T:.10g} (Gamma = {gamma:g}), alpha = 1 + T/EA = {alpha:.10g}")
+    g = f" (Gamma = {gamma:g})" if gamma is not None else ""
+    click.echo(f"# straight weightless rod, T = {T:.10g}{g}, alpha = 1 + T/EA = {alpha:.10g}")
     click.echo(f"{'n':>3} {'phi_L':>18} {'torque':>18} {'m L/(alpha EI)':>16}")
     for n, phi in enumerate(crit, 1):
         m = GJ * alpha * phi / L
@@ -511,7 +652,7 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 
 
 @main_group.command()
-@click.option("--gamma", type=float, required=True, callback=_number("--gamma"), help="tension ratio T / (w L)")
+@click.option("--gamma", type=float, default=None, callback=_number("--gamma"), help="tension ratio T / (w L) (or --T)")
 @trace_options
 @click.option("--deflate", "deflate_at", type=float, multiple=True, callback=_number("--deflate"),
               help="a Phi where deflated Newton looks for solutions the seeds missed (repeatable)")
@@ -532,13 +673,15 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
                        max_defect, fold_error, forced, uniform, N_max)
     rod = _rod(w, EI, GJ, EA, L)
+    gamma, T = _tension(gamma, rod)
     _check_out(out, [], overwrite)
     with _Interrupts() as intr:
         progress = _Progress(True, intr)
         t0 = time.perf_counter()
         interrupted = False
         try:
-            dg = run_diagram(gamma, rod, N=N, k=k, out=out, overwrite=overwrite, deflate_at=deflate_at,
+            dg = run_diagram(None, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, deflate_at=deflate_at,
+                             meta=_meta(),
                              callback=progress, progress=None if quiet else (lambda m: click.echo(m, err=True)),
                              **kw)
         except KeyboardInterrupt:
@@ -732,6 +875,8 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
     """A family, one branch (or --diagram) per Gamma, traced in parallel, and their combined response diagram."""
     from .drivers.solve import check_tension
     from .drivers.sweep import gamma_name, sweep as run_sweep
+    if click.get_current_context().meta.get("rodcont.T") is not None:
+        raise UserError("sweep runs one branch per --gamma; --T is for a single trace or diagram")
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
                        max_defect, fold_error, forced, uniform, N_max)
     rod = _rod(w, EI, GJ, EA, L)

@@ -492,9 +492,12 @@ class Tracker:
             y_pred[-1] += 0.5 * ds * ds * kp
         y = y_pred.copy()
         tol = s.newton_tol
-        # a regular point is accepted when the last Newton step is this small (its error is then
-        # of the order of its square); located points need the tolerance itself
-        accept = tol
+        # The Newton step whose factorisation gives the tangent is applied to the point: after it
+        # the error is of the order of the square of that step. So the chord stops, and the step is
+        # accepted, at 1e-3 sqrt(tol) (1e-8 for tol = 1e-10), which leaves an error far below tol.
+        # Located points (folds, events) need the tangent itself to the tolerance: the tangent is
+        # taken before the last step, so there the step must be below the tolerance.
+        accept = max(tol, 1e-3 * math.sqrt(tol)) if kind == Kind.REGULAR else tol
         info = dict(contraction=0.0, distance=0.0, newton=0)
         iterations = 0
         if base.solver is not None:
@@ -509,7 +512,7 @@ class Tracker:
                 if not math.isfinite(size):
                     return None, "the corrector diverged"
                 y_next = y + dy
-                scale = tol * (1 + max_norm(y_next))
+                scale = accept * (1 + max_norm(y_next))
                 if sizes:
                     rate = size / sizes[-1] if sizes[-1] > 0 else 0.0
                     if len(sizes) == 1:
@@ -521,7 +524,7 @@ class Tracker:
                         break
                     y = y_next
                     sizes.append(size)
-                    if size * rate / max(1 - rate, 1e-3) <= 0.1 * scale:
+                    if size * rate / max(1 - rate, 1e-3) <= scale:
                         break
                 else:
                     y = y_next

@@ -230,7 +230,7 @@ class Diagram:
 def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
             T: float | None = None, out: str | None = None, overwrite: bool = False,
             deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
-            progress: Callable[[str], None] | None = None, **options) -> Diagram:
+            progress: Callable[[str], None] | None = None, meta: dict | None = None, **options) -> Diagram:
     """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``) in ``[phi_min, phi_max]``.
 
     ``options``: the fields of :class:`rodcont.drivers.trace.TraceOptions`,
@@ -271,7 +271,7 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         probe = RodSystem(rod, T=T, N=N, k=k)
         meta = file_meta(rod, T, N, k, "phi_L", opts, probe, dict(kind="diagram", critical_twists=np.asarray(crit),
                                                                    seeds=np.asarray(seeds),
-                                                                   deflate_at=np.asarray(deflate_at)))
+                                                                   deflate_at=np.asarray(deflate_at), **(meta or {})))
         writer = BranchWriter(out, meta)
         _mesh_group(writer, probe)
 

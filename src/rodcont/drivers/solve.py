@@ -61,9 +61,9 @@ class Equilibrium:
         return self.system.model.centreline(self.system.disc, self.x, S)
 
 
-def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
-                      load_step: float = 0.5, tol: float = 1e-10) -> Equilibrium:
-    """Equilibrium at ``(gamma, phi_L)`` reached by loading ``phi_L`` up from 0 in steps.
+def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
+                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None) -> Equilibrium:
+    """Equilibrium at ``(gamma, phi_L)`` (or tension ``T``) reached by loading ``phi_L`` up from 0 in steps.
 
     A step that fails is halved (down to ``load_step / 1024``).
     """
@@ -71,7 +71,14 @@ def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = No
         rod = RodParameters()
     if not isinstance(rod, RodParameters):
         raise TypeError(f"rod must be a RodParameters, got {rod!r}")
-    gamma = check_number("gamma", gamma)
+    if T is None:
+        gamma = check_number("gamma", gamma)
+        if rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
+        T = rod.tension(gamma)
+    else:
+        T = check_number("T", T)
+        gamma = rod.gamma(T) if rod.w > 0 else math.nan
     phi_L = check_number("phi_L", phi_L)
     load_step = check_number("load_step", load_step, positive=True)
     N = check_number("N", N, integer=True)
@@ -79,16 +86,15 @@ def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = No
     tol = check_number("tol", tol, positive=True)
     if abs(phi_L) / load_step > 1e5:
         raise ValueError(f"load_step = {load_step:g} would take more than 1e5 steps to reach phi_L = {phi_L:g}")
-    T = rod.tension(gamma)
     if not math.isfinite(T):
         raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
     check_tension(rod, T)
-    sysm = RodSystem(rod, gamma, N, k)
+    sysm = RodSystem(rod, T=T, N=N, k=k)
     with np.errstate(all="ignore"):
         x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
         r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)
         if not r.converged:
-            raise ConvergenceError(f"no equilibrium found at phi_L = 0 (Gamma = {gamma:g}): {r.message}")
+            raise ConvergenceError(f"no equilibrium found at phi_L = 0 (T = {T:g}): {r.message}")
         x, done, step = r.x, 0.0, math.copysign(load_step, phi_L) if phi_L else load_step
         while done != phi_L:
             target = done + step
@@ -104,5 +110,5 @@ def solve_equilibrium(gamma: float, phi_L: float, rod: RodParameters | None = No
                                            f"likely just beyond; use 'rodcont trace'): {r.message}")
         out = sysm.outputs(x, phi_L)
     out["alpha_min"] = sysm.model.stretch_factor_min(sysm.disc, x, sysm.params(phi_L))
-    check_physical(out, f"Gamma = {gamma:g}, phi_L = {phi_L:g}")
+    check_physical(out, f"T = {T:g}, phi_L = {phi_L:g}")
     return Equilibrium(out, x, sysm, r)
