@@ -736,17 +736,34 @@ def folds(file):
 @main_group.command()
 @click.argument("files", nargs=-1, required=True)
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PNG to write")
+@click.option("--x", "xvar", default=None, help="horizontal variable [default: stretch; a fold curve's parameter]")
+@click.option("--y", "yvar", default=None, help="vertical variable [default: phi_L]")
+@click.option("--label", "labels", multiple=True, help="legend label of each file, in order (repeatable)")
+@click.option("--log/--linear", "log", default=None, help="horizontal scale [default: log for a positive stretch]")
 @click.option("--title", default=None)
-def plot(files, output, title):
-    """Response diagram (Phi against stretch; diagrams with every branch, folds marked and labelled)."""
+def plot(files, output, xvar, yvar, labels, log, title):
+    """Response diagrams: any two of phi_L, stretch, torque, l0, helical_waves, min_alignment or a
+    continued parameter (torque against Phi is the distinguished diagram); one colour per file,
+    stable parts solid, unstable dashed, folds marked and labelled with the waves on each side."""
     _image_out(output, files)
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: plots are written as PNG (name it .png)")
+    from .plots import PLOT_VARIABLES
+    allowed = PLOT_VARIABLES + ("gamma", "T", "w", "EI", "GJ", "EA")
+    for name, v in (("--x", xvar), ("--y", yvar)):
+        if v is not None and v not in allowed:
+            raise UserError(f"{name} {v!r}: choose one of {', '.join(allowed)}")
+    if labels and len(labels) != len(files):
+        raise UserError(f"--label: give one per file ({len(files)}), got {len(labels)}")
     data = [_load_any(f) for f in files]
     if any(sum(len(b) for b in d.branches) == 0 for d in data):
         raise UserError("a branch file with no points cannot be plotted")
     from .plots import response_diagram
-    response_diagram(data, output, title)
+    try:
+        response_diagram(data, output, title, x=xvar, y=yvar, labels=list(labels) or None,
+                         xscale=None if log is None else ("log" if log else "linear"))
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     click.echo(f"wrote {output}")
 
 

@@ -6,6 +6,8 @@ pyplot, so the caller's backend and global state are left alone.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -22,69 +24,90 @@ def _cmap(name):
     return matplotlib.colormaps[name]
 
 
-def response_diagram(files, path: str, title: str | None = None) -> None:
-    """``phi_L`` (vertical) against ``stretch``: every branch of every file, one colour per Gamma.
+PLOT_VARIABLES = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment")
+LABELS = {"phi_L": "end rotation  Φ = φ(L)  [rad]", "stretch": "stretch  (ℓ − L) / L", "torque": "torque  M·d3",
+          "l0": "unstressed length ℓ0", "helical_waves": "helical waves", "min_alignment": "min d3·K3",
+          "gamma": "Γ = T / (w L)", "T": "tension T", "w": "weight w", "EI": "EI", "GJ": "GJ", "EA": "EA"}
+
+
+def _segments(x, y, unstable):
+    """Split a curve where its stability changes: ``[(x, y, stable)]`` (no gaps)."""
+    if unstable is None:
+        return [(x, y, True)]
+    stable = np.asarray(unstable) == 0
+    out, start = [], 0
+    for i in range(1, len(x) + 1):
+        if i == len(x) or stable[i] != stable[start]:
+            j = min(i + 1, len(x))
+            out.append((x[start:j], y[start:j], bool(stable[start])))
+            start = i
+    return out
+
+
+def response_diagram(files, path: str, title: str | None = None, x: str | None = None, y: str | None = None,
+                     labels=None, xscale: str | None = None) -> None:
+    """Branches of every file, ``y`` (default ``phi_L``) against ``x`` (default ``stretch``).
 
     ``files``: :class:`rodcont.branchfile.DiagramData` (a trace file is a
-    diagram of one branch). Folds are marked (○) and, in diagrams, labelled
-    with the helical waves on their two sides (``1→2``); × marks where a
-    branch ends. A fold-curve file is drawn as ``phi_L`` at the fold against
-    its parameter, on its own axes.
+    diagram of one branch). One colour per file (every branch of a diagram in
+    the file's colour); stable parts solid and unstable parts dashed where the
+    file stores ``unstable_modes``; folds marked (○) and, in diagrams,
+    labelled with the helical waves on their two sides (``1→2``); × marks
+    where a branch ends. A fold-curve file defaults to ``phi_L`` at the fold
+    against its parameter. ``xscale``: ``log``, ``linear`` or None (log when
+    ``x`` is the stretch and positive). The legend sits outside the axes.
     """
-    ordinary = [d for d in files if d.attrs.get("kind", "branch") != "fold_curve"
-                and d.attrs.get("param", "phi_L") == "phi_L"]
-    loci = [d for d in files if d not in ordinary]
-    ncols = (1 if ordinary else 0) + (1 if loci else 0)
-    fig = _figure(7.0 * ncols, 5.8)
-    axes = [fig.add_subplot(1, ncols, i + 1) for i in range(ncols)]
-    col = 0
-    if ordinary:
-        ax = axes[col]
-        col += 1
-        cmap = _cmap("viridis")
-        gammas = sorted({float(d.attrs.get("gamma", 0.0)) for d in ordinary})
-        smin = np.inf
-        for d in sorted(ordinary, key=lambda d: float(d.attrs.get("gamma", 0.0))):
-            g = float(d.attrs.get("gamma", 0.0))
-            c = cmap(0.9 * gammas.index(g) / max(len(gammas) - 1, 1))
-            is_diagram = d.attrs.get("kind") == "diagram"
-            for j, b in enumerate(d.branches):
-                s, p = b.branch["stretch"], b.branch["phi_L"]
-                smin = min(smin, float(np.min(s)))
-                label = f"Γ = {g:g}" + (" (diagram)" if is_diagram else "") if j == 0 else None
-                ax.plot(s, p, "-", color=c, lw=1.4, label=label)
-                f = b.folds
-                if f and len(f.get("index", [])):
-                    ax.plot(f["stretch"], f["phi_L"], "o", ms=5, mfc="white", mec=c, mew=1.5)
-                    if is_diagram:
-                        for fs, fp, wb, wa in zip(f["stretch"], f["phi_L"], f["waves_before"], f["waves_after"]):
-                            ax.annotate(f"{wb}→{wa}", (fs, fp), textcoords="offset points", xytext=(4, 4),
-                                        fontsize=7, color=c)
-                ax.plot(s[-1:], p[-1:], "x", color=c, ms=6)
+    fig = _figure(8.2, 5.8)
+    ax = fig.add_subplot(1, 1, 1)
+    colours = _cmap("tab10")
+    xs_all = []
+    kinds = {d.attrs.get("kind", "branch") for d in files}
+    for n, d in enumerate(files):
+        c = colours(n % 10)
+        param = d.attrs.get("param", "phi_L")
+        xv = x or (param if param != "phi_L" else "stretch")
+        yv = y or "phi_L"
+        g = d.attrs.get("gamma")
+        label = (labels[n] if labels and n < len(labels) else
+                 (f"Γ = {g:g}" if isinstance(g, float) and math.isfinite(g) else f"T = {d.attrs.get('T', 0):g}")
+                 + {"diagram": " (diagram)", "fold_curve": f" (fold locus in {param})"}.get(d.attrs.get("kind"), ""))
+        is_diagram = d.attrs.get("kind") == "diagram"
+        for j, b in enumerate(d.branches):
+            br = b.branch
+            for name in (xv, yv):
+                if name not in br:
+                    raise ValueError(f"{d.path} has no column {name!r} (it has: {', '.join(sorted(k for k in br if br[k].ndim == 1))})")
+            order = np.argsort(br["arclength"]) if d.attrs.get("kind") == "fold_curve" else np.arange(len(br[xv]))
+            X, Y = np.asarray(br[xv], float)[order], np.asarray(br[yv], float)[order]
+            unstable = br.get("unstable_modes")
+            unstable = None if unstable is None else np.asarray(unstable)[order]
+            for k_, (sx, sy, stable) in enumerate(_segments(X, Y, unstable)):
+                ax.plot(sx, sy, "-" if stable else "--", color=c, lw=1.4,
+                        label=label if (j == 0 and k_ == 0) else None)
+            xs_all.append(X)
+            f = b.folds
+            if f and len(f.get("index", [])) and d.attrs.get("kind") != "fold_curve":
+                idx = np.asarray(f["index"], int)
+                ax.plot(np.asarray(br[xv])[idx], np.asarray(br[yv])[idx], "o", ms=5, mfc="white", mec=c, mew=1.5)
                 if is_diagram:
-                    ax.plot(s[:1], p[:1], "x", color=c, ms=6)
-        if smin > 0:
-            ax.set_xscale("log")  # the stretch spans decades: from the sag to the loop
-        else:
-            ax.set_xscale("symlog", linthresh=1e-5, linscale=0.3)
-        ax.set_xlabel("stretch  (ℓ − L) / L")
-        ax.set_ylabel("end rotation  Φ = φ(L)  [rad]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=9, title="○ fold (waves before→after)   × end", title_fontsize=8)
-        ax.set_title(title or "Response diagram: twisted heavy clamped rod")
-    if loci:
-        ax = axes[col]
-        for d in loci:
-            for b in d.branches:
-                param = d.attrs.get("param")
-                order = np.argsort(b.branch["arclength"])
-                ax.plot(b.branch[param][order], b.branch["phi_L"][order], "-", lw=1.4,
-                        label=f"fold locus in {param}")
-                ax.set_xlabel(param)
-        ax.set_ylabel("Φ at the fold  [rad]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=9)
-        ax.set_title("Fold curves")
+                    for i, wb, wa in zip(idx, f["waves_before"], f["waves_after"]):
+                        ax.annotate(f"{wb}→{wa}", (br[xv][i], br[yv][i]), textcoords="offset points", xytext=(4, 4),
+                                    fontsize=7, color=c)
+            ax.plot(X[-1:], Y[-1:], "x", color=c, ms=6)
+            if is_diagram:
+                ax.plot(X[:1], Y[:1], "x", color=c, ms=6)
+    allx = np.concatenate(xs_all) if xs_all else np.zeros(1)
+    xname = x or ("stretch" if kinds != {"fold_curve"} else files[0].attrs.get("param"))
+    if xscale is None:
+        xscale = "log" if xname == "stretch" and np.all(allx > 0) and allx.max() > 30 * allx.min() else "linear"
+    ax.set_xscale(xscale)
+    ax.set_xlabel(LABELS.get(xname, xname))
+    ax.set_ylabel(LABELS.get(y or "phi_L", y or "phi_L"))
+    ax.grid(True, alpha=0.3)
+    extra = "   -- unstable" if any("unstable_modes" in b.branch for d in files for b in d.branches) else ""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0,
+              title=f"○ fold (waves)   × end{extra}", title_fontsize=7)
+    ax.set_title(title or "Response diagram: twisted heavy clamped rod")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
 
