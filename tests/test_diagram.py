@@ -189,3 +189,16 @@ def test_sweep_of_diagrams(tmp_path, capsys):
     assert code == 0, err
     d = rodcont.load_diagram(str(tmp_path / "fam" / "diagram_1.h5"))
     assert len(d.branches) == 2 and (tmp_path / "fam" / "response_diagram.png").exists()
+
+
+def test_fold_curve_in_gamma_passes_through_the_lagrangian_folds(tmp_path):
+    """The fold locus continued from the Gamma = 1 fold (adaptive mesh) meets the independent
+    primary folds at Gamma = 0, 0.5, 2 and 5 to 1e-8 in Phi."""
+    from rodcont.drivers.foldcurve import fold_curve
+    path = str(tmp_path / "g1.h5")
+    rodcont.trace(1.0, stretch_max=0.3, out=path)
+    res = fold_curve(rodcont.load_branch(path), 0, "gamma", 0.0, 5.0, forced=(0.5, 2.0))
+    at = {round(q.p, 12): q for q in res["points"] if q.kind in ("bound", "forced")}
+    for g in (0.0, 0.5, 2.0, 5.0):
+        assert at[g].data["phi_L"] == pytest.approx(PRIMARY[g]["phi_L"], abs=1e-8), g
+        assert at[g].data["stretch"] == pytest.approx(PRIMARY[g]["stretch"], abs=1e-7), g

@@ -811,10 +811,13 @@ def shape(file, points, branch, output):
               help="accuracy guard on the estimated error of each fold")
 @click.option("--forced", type=float, multiple=True, callback=_number("--forced"),
               help="a parameter value that gets a point of its own")
+@click.option("--uniform", is_flag=True, help="keep the fold's mesh (no adaptation)")
+@click.option("--N-max", "N_max", type=click.IntRange(1, 100000), default=400, show_default=True)
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="fold-curve file to write (HDF5)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True)
-def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced, out, overwrite, quiet):
+def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced, uniform, N_max, out, overwrite,
+                   quiet):
     """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I (or FILE.h5:BRANCH:I) is the I-th fold, from 0."""
     from .branchfile import BranchFileError, split_spec
     from .drivers.foldcurve import fold_curve
@@ -834,7 +837,7 @@ def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced
         try:
             res = fold_curve(data, fold, param, prange[0], prange[1], out=out, ds=ds, ds_max=ds_max,
                              max_steps=max_steps, forced=forced, max_error=max_error, overwrite=overwrite,
-                             callback=progress)
+                             adapt=not uniform, N_max=N_max, callback=progress)
         except KeyboardInterrupt:
             progress.done()
             click.echo(f"interrupted: {out} holds the points computed so far", err=True)

@@ -2,10 +2,11 @@
 
 Minimally augmented system (:class:`rodcont.bifurcation.FoldProblem`) traced
 from the stored fold in both directions of ``q`` within ``[lo, hi]`` (both
-bounds located on both sides), on the mesh the fold was stored on (it is not
-rebuilt: the locus runs on that mesh, and the accuracy guard stops it where
-that mesh no longer resolves the fold). The validity guard and the accuracy
-guard stop each direction as in a trace; the file records why each ended.
+bounds located on both sides), starting on the mesh the fold was stored on
+(adapted or not). As in a trace, the mesh adapts to the fold state when its
+estimated error passes ``max_error / 10`` (``adapt``, up to ``N_max``
+subintervals), a point above ``max_error`` is never stored, and the validity
+and accuracy guards stop each direction; the file records why each ended.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ CURVE_PARAMS = ("gamma", "T", "w", "EI", "GJ", "EA")
 def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | None = None,
                ds: float = 0.05, ds_max: float = 0.5, max_steps: int = 500, forced: Sequence[float] = (),
                min_alignment: float | None = None, max_error: float = 1e-6, overwrite: bool = False,
-               callback: Callable[[Point], None] | None = None) -> dict:
+               adapt: bool = True, N_max: int = 400, callback: Callable[[Point], None] | None = None) -> dict:
     """Continue the ``fold``-th fold (from 0) of a loaded branch in ``(phi_L, param)`` over ``[lo, hi]``.
 
     Returns ``{"points": [...], "stop_reasons": (down, up), "param": param}`` with
@@ -77,11 +78,6 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
     X0 = np.append(x0, phi0)
     estimator = ErrorEstimator(one)
 
-    def monitor(X, q):
-        o = two.outputs(X, q)
-        o["error"] = math.nan
-        return o
-
     events = [Event(f"validity guard: min d3.K3 reached min_alignment = {guard:g}",
                     lambda q_: q_.data["min_alignment"] - guard, stop=True, tol=1e-6)]
     writer = group = None
@@ -100,37 +96,56 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
         _mesh_group(writer, one)
     parts, reasons = [], []
     t0 = time.perf_counter()
+    trigger = max_error / 10.0
     try:
         for direction in (-1, 1):
             s = ContinuationSettings(ds=ds, ds_min=min(1e-7, ds), ds_max=ds_max, direction=direction, p_min=lo,
                                      p_max=hi, max_steps=max_steps, detect_folds=True, detect_branch_points=False,
                                      forced=forced, max_angle=0.3)
-            tr = Tracker(fp, X0, q0, s, monitor=monitor, events=events)
-            pts, reason = [], ""
-            try:
-                for p_ in tr:
-                    if direction > 0 and p_.kind == Kind.START:
-                        continue  # the start point once
-                    one.base = two.params(float(p_.x[-1]), p_.p)
-                    estimator.fine.base = one.base.copy()
-                    err = estimator.estimate(p_.x[:-1], float(p_.x[-1]), (fp.c, 0.0))
-                    p_.data["error"] = err
-                    if err > max_error:
-                        reason = (f"accuracy guard: estimated error {err:.2g} > max_error = {max_error:g} at "
-                                  f"{param} = {p_.p:.10g} (the fold's mesh no longer resolves it)")
-                        break
-                    p_.data["arclength"] = p_.arclength * direction  # the tracker reads p_.arclength: not changed
-                    pts.append(p_)
-                    if writer is not None:
-                        row = dict(p_.data, dphi_ds=0.0)
-                        writer.add_point(group, row, str(p_.kind), p_.located, p_.x[:-1],
-                                         np.append(p_.tx[:-1], p_.tx[-1]), b)
-                        writer.maybe_flush()
-                    if callback is not None:
-                        callback(p_)
-                reason = reason or tr.stop_reason
-            except StopContinuation as exc:
-                reason = str(exc)
+            seg = _FoldSegment(one, two, fp, estimator, X0, q0, None)
+            pts, reason, remeshes = [], "", 0
+            while True:
+                tr = Tracker(seg.fp, seg.X, seg.q, s, monitor=seg.monitor, events=events, tangent0=seg.tangent)
+                next_seg, last_ok = None, None
+                try:
+                    for p_ in tr:
+                        if p_.kind == Kind.START and (direction > 0 or pts):
+                            last_ok = p_
+                            continue  # the start point once
+                        err = seg.error(p_)
+                        p_.data["error"] = err
+                        if err > max_error or (err > trigger and adapt):
+                            if adapt and seg.one.disc.N < N_max and remeshes < 40:
+                                base = last_ok if err > max_error and last_ok is not None else p_
+                                keep = err <= max_error
+                                next_seg = seg.remeshed(base, max(err, trigger), trigger / 10, N_max)
+                                remeshes += 1
+                                if not keep:
+                                    break
+                            elif err > max_error:
+                                reason = (f"accuracy guard: estimated error {err:.2g} > max_error = {max_error:g} at "
+                                          f"{param} = {p_.p:.10g}" + ("" if adapt else " (the mesh is fixed)"))
+                                break
+                        p_.data["arclength"] = p_.arclength * direction  # the tracker reads p_.arclength
+                        pts.append(p_)
+                        last_ok = p_
+                        if writer is not None:
+                            row = dict(p_.data, dphi_ds=0.0)
+                            writer.add_point(group, row, str(p_.kind), p_.located, p_.x[:-1],
+                                             np.append(p_.tx[:-1], p_.tx[-1]), seg.one.disc.breakpoints)
+                            writer.maybe_flush()
+                        if callback is not None:
+                            callback(p_)
+                        if next_seg is not None:
+                            break
+                    if next_seg is None:
+                        reason = reason or tr.stop_reason
+                except StopContinuation as exc:
+                    reason = str(exc)
+                    next_seg = None
+                if next_seg is None:
+                    break
+                seg = next_seg
             parts.append(pts)
             reasons.append(reason)
     finally:
@@ -152,3 +167,38 @@ def _fold_null_vector(J, F1):
     e[-1] = 1.0
     t = LU(bordered(J, np.asarray(F1, float), c[:-1], c[-1])).solve(e)
     return t[:-1]
+
+
+class _FoldSegment:
+    """The fold problem on one mesh: the systems, the estimator, where it starts and which way."""
+
+    def __init__(self, one: RodSystem, two: RodSystem2, fp, estimator: ErrorEstimator, X, q, tangent):
+        self.one, self.two, self.fp, self.estimator = one, two, fp, estimator
+        self.X, self.q, self.tangent = X, q, tangent
+
+    def monitor(self, X, q):
+        o = self.two.outputs(X, q)
+        o["error"] = math.nan
+        return o
+
+    def error(self, pt) -> float:
+        """Estimated error of the fold state at ``pt`` (its branch tangent is the null vector ``c``)."""
+        self.one.base = self.two.params(float(pt.x[-1]), pt.p)
+        self.estimator.fine.base = self.one.base.copy()
+        return self.estimator.estimate(pt.x[:-1], float(pt.x[-1]), (self.fp.c, 0.0))
+
+    def remeshed(self, pt, err: float, target: float, N_max: int) -> "_FoldSegment":
+        """The same fold problem from ``pt`` on a mesh adapted to the fold state there."""
+        from ..bifurcation import FoldProblem
+        from ..mesh import adapted_mesh
+        x, phi = pt.x[:-1], float(pt.x[-1])
+        self.one.base = self.two.params(phi, pt.p)
+        ind = self.one.interval_defect(x, phi)
+        b = adapted_mesh(self.one.disc.breakpoints, ind, self.one.disc.k, err, target, N_max=N_max)
+        one = self.one.with_mesh(b)
+        two = RodSystem2(one, self.two.param)
+        xn = one.disc.transfer(x, self.one.disc)
+        vn = one.disc.transfer(np.asarray(self.fp.c, float), self.one.disc)
+        fp = FoldProblem(two, xn, phi, pt.p, vn)
+        tx = np.append(one.disc.transfer(pt.tx[:-1], self.one.disc), pt.tx[-1])
+        return _FoldSegment(one, two, fp, ErrorEstimator(one), np.append(xn, phi), pt.p, (tx, pt.tp))
