@@ -109,3 +109,14 @@ def test_sweep_cli_processes(tmp_path, capsys):
         main(["sweep", "--gamma", "1", "-50", "--out", str(tmp_path / "bad")])
     assert exc.value.code == 2
     assert not (tmp_path / "bad").exists()
+
+
+def test_sweep_on_a_dask_cluster_with_process_workers(tmp_path):
+    """The same sweep, on a real dask.distributed LocalCluster of two worker processes."""
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        res = sweep([0.0, 1.0], str(tmp_path), executor=client.get_executor(), stretch_max=0.2, plot=False)
+    firsts = {r["gamma"]: r["first_fold"] for r in res["branches"]}
+    assert firsts[1.0] == pytest.approx(13.0999938, abs=1e-6) and firsts[0.0] == pytest.approx(10.7769232, abs=1e-6)
+    assert all(r["error"] is None for r in res["branches"])

@@ -131,7 +131,7 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
                     display.update(*queue.get_nowait())
             if pending:
                 time.sleep(0.1)
-            display.draw()
+            display.draw(force=not pending)
     finally:
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
@@ -167,8 +167,8 @@ class _Progress:
             sys.stderr.write(f"  Gamma {g:8g}: {self.lines[g]}\n")
             sys.stderr.flush()
 
-    def draw(self):
-        if not self.tty or time.monotonic() - self.last < 0.2:
+    def draw(self, force: bool = False):
+        if not self.tty or (time.monotonic() - self.last < 0.2 and not force):
             return
         self.last = time.monotonic()
         out = []
