@@ -198,8 +198,8 @@ class _Group:
         self.nb = 0
         self.n = 0
         self.g = g
-        self._folds = None
-        self._bps = None
+        self.store_every = 1
+        self._pending = None  # (row, x, tangent) of the last point whose solution was not stored
 
     def _matrix(self, name, width, dtype):
         g = self.g
@@ -222,13 +222,24 @@ class _Group:
             ds = g[name]
             ds.resize(i + 1, axis=0)
             ds[i] = val
+        store = self.store_every <= 1 or i % self.store_every == 0 or str(kind) != "regular"
         for name, vec, dtype in (("coefficients", x, "f8"), ("tangent", tangent, "f4"),
                                  ("breakpoints", breakpoints, "f8")):
             vec = np.asarray(vec)
             ds = self._matrix(name, vec.size, dtype)
             ds.resize(i + 1, axis=0)
-            ds[i, :vec.size] = vec
+            if store or name == "breakpoints":
+                ds[i, :vec.size] = vec
+        self._pending = None if store else (i, np.asarray(x), np.asarray(tangent))
         self.n += 1
+
+    def fill_pending(self) -> None:
+        """Store the solution of the last point if it was thinned out (so the file always ends restartable)."""
+        if self._pending is not None:
+            i, x, t = self._pending
+            self.g["coefficients"][i, :x.size] = x
+            self.g["tangent"][i, :t.size] = t
+            self._pending = None
 
     def set_special(self, folds: list[dict], branch_points: list[dict]) -> None:
         """Rewrite the fold and branch-point tables (waves and sides are known only as the branch grows)."""
@@ -256,13 +267,15 @@ class BranchWriter:
     point: a run that finds none leaves the target as it was.
     """
 
-    def __init__(self, path: str, meta: dict, interval: float = 1.0, lock: bool = True):
+    def __init__(self, path: str, meta: dict, interval: float = 1.0, lock: bool = True, store_every: int = 1):
         h5py = _h5py()
         self.path = path
+        self.store_every = int(store_every)
         self.lock = OutputLock(path) if lock else None
         self.f = h5py.File(f"rodcont-{id(self)}-{time.monotonic_ns()}", "w", driver="core", backing_store=False)
         self.f.attrs["rodcont_version"] = __version__
         self.f.attrs["stop_reason"] = "running"
+        self.f.attrs["store_every"] = self.store_every
         for key, val in meta.items():
             self.f.attrs[key] = _attr(val)
         self.groups: dict[str, _Group] = {}
@@ -277,6 +290,7 @@ class BranchWriter:
         if where not in self.groups:
             root = self.f if where == "/" else self.f.require_group(where)
             self.groups[where] = _Group(root, extra_columns, {k: _attr(v) for k, v in (attrs or {}).items()})
+            self.groups[where].store_every = self.store_every
         return self.groups[where]
 
     def set_attr(self, key, value, where: str = "/") -> None:
@@ -291,6 +305,8 @@ class BranchWriter:
         if self.points == 0 or self.closed:
             return
         t = time.monotonic()
+        for grp in self.groups.values():
+            grp.fill_pending()
         self.f.flush()
         publish(self.path, self.f.id.get_file_image())
         self.published = self.points
@@ -408,6 +424,12 @@ class BranchData:
         b = self.branch["breakpoints"][i]
         b = b[np.isfinite(b)]
         x = self.branch["coefficients"][i]
+        if not np.any(np.isfinite(x)):
+            stored = [j for j in range(len(self)) if np.any(np.isfinite(self.branch["coefficients"][j]))]
+            near = min(stored, key=lambda j: abs(j - i)) if stored else None
+            raise BranchFileError(f"{self.label}: point {i} has no stored solution (the file keeps every "
+                                  f"{self.attrs.get('store_every', '?')}-th point and the special ones)"
+                                  + (f"; the nearest stored one is {near}" if near is not None else ""))
         out["breakpoints"] = b
         out["x"] = x[np.isfinite(x)]
         out["index"] = i
@@ -542,6 +564,8 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
     for i in range(n):
         b = B[i][np.isfinite(B[i])]
         x = X[i][np.isfinite(X[i])]
+        if x.size == 0 and int(attrs.get("store_every", 1)) > 1 and b.size >= 2:
+            continue  # a thinned-out point: no solution stored
         if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11:
             raise BranchFileError(f"{where}: damaged branch file (point {i}: coefficients do not fit its mesh)")
     folds, bps = {}, {"index": np.zeros(0, int)}

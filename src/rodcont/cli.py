@@ -217,6 +217,8 @@ def trace_options(f):
         click.option("--uniform", is_flag=True, help="keep the first mesh (no adaptation)"),
         click.option("--N-max", "N_max", type=click.IntRange(1, 100000), default=400, show_default=True,
                      help="largest number of subintervals the adaptive mesh may use"),
+        click.option("--store-every", type=click.IntRange(1, 10**6), default=1, show_default=True,
+                     help="keep the solution of every M-th point (and of special points and the last): smaller files"),
     ]
     for opt in reversed(opts):
         f = opt(f)
@@ -224,7 +226,7 @@ def trace_options(f):
 
 
 def _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-                  max_defect, fold_error, forced, uniform, N_max):
+                  max_defect, fold_error, forced, uniform, N_max, store_every=1):
     ctx = click.get_current_context()
     if ds > ds_max and ctx.get_parameter_source("ds") == click.core.ParameterSource.DEFAULT:
         ds = ds_max  # only --ds-max was given: start at it
@@ -238,7 +240,7 @@ def _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
         max_error = max_defect
     return dict(phi_max=phi_max, phi_min=phi_min, stretch_max=stretch_max, max_steps=max_steps, ds=ds,
                 ds_max=ds_max, ds_min=ds_min, min_alignment=min_alignment, max_error=max_error,
-                fold_error=fold_error, forced=tuple(forced), adapt=not uniform, N_max=N_max)
+                fold_error=fold_error, forced=tuple(forced), adapt=not uniform, N_max=N_max, store_every=store_every)
 
 
 def _rod(w, EI, GJ, EA, L):
@@ -464,8 +466,8 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error, max_defect,
-          fold_error, forced, uniform, N_max, start, switch, from_straight, param, prange, direction, out,
-          overwrite, quiet, N, k, w, EI, GJ, EA, L):
+          fold_error, forced, uniform, N_max, store_every, start, switch, from_straight, param, prange, direction,
+          out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
@@ -475,7 +477,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     import numpy as np
     from .drivers.trace import trace as run_trace
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-                       max_defect, fold_error, forced, uniform, N_max)
+                       max_defect, fold_error, forced, uniform, N_max, store_every)
     kw["direction"] = 1 if direction == "up" else -1
     if param != "phi_L":
         if prange is None:
@@ -661,7 +663,8 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-            max_defect, fold_error, forced, uniform, N_max, deflate_at, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
+            max_defect, fold_error, forced, uniform, N_max, store_every, deflate_at, out, overwrite, quiet, N, k, w, EI,
+            GJ, EA, L):
     """The whole response diagram at Gamma: every branch in [phi-min, phi-max], every fold.
 
     The primary branch from Phi = 0, one seed per interval between
@@ -671,7 +674,7 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     """
     from .drivers.diagram import diagram as run_diagram
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-                       max_defect, fold_error, forced, uniform, N_max)
+                       max_defect, fold_error, forced, uniform, N_max, store_every)
     rod = _rod(w, EI, GJ, EA, L)
     gamma, T = _tension(gamma, rod)
     _check_out(out, [], overwrite)
@@ -890,7 +893,7 @@ class _GreedyFloats(click.Option):
 @click.option("--quiet", is_flag=True)
 @rod_options
 def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-          max_defect, fold_error, forced, uniform, N_max, whole, jobs, out_dir, overwrite, quiet,
+          max_defect, fold_error, forced, uniform, N_max, store_every, whole, jobs, out_dir, overwrite, quiet,
           N, k, w, EI, GJ, EA, L):
     """A family, one branch (or --diagram) per Gamma, traced in parallel, and their combined response diagram."""
     from .drivers.solve import check_tension
@@ -898,7 +901,7 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("sweep runs one branch per --gamma; --T is for a single trace or diagram")
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-                       max_defect, fold_error, forced, uniform, N_max)
+                       max_defect, fold_error, forced, uniform, N_max, store_every)
     rod = _rod(w, EI, GJ, EA, L)
     for g in gammas:
         try:

@@ -689,6 +689,25 @@ class Tracker:
             best.located = False
         return best
 
+    def _guards_at_found(self, base: Point, found: list[Finding]) -> list[Finding]:
+        """A stopping event can be crossed between the base and a located point even when it is not
+        crossed between the base and the step's end (a guard that dips at a fold): then it is
+        located on that shorter arc, and the trace stops there."""
+        for ev in self.events:
+            if ev.action != "stop":
+                continue
+            g0 = ev.function(base)
+            for j, f in enumerate(found):
+                if f.point is None or f.stop is not None or g0 * ev.function(f.point) >= 0:
+                    continue
+                e = self.locate(base, f.offset, ev.function, g0, ev.function(f.point),
+                                ev.tol * max(abs(g0), 1e-300), f"event:{ev.name}")
+                stop = StopReason(Stop.EVENT, ev.name, ev.name)
+                if e is None:
+                    return found[:j] + [Finding(f.offset, None, stop)]
+                return found[:j] + [Finding(e.ds, e, stop)]
+        return found
+
     def _accept(self, pt: Point) -> None:
         """Make ``pt`` the current point; problems with an ``accept(x, p)`` hook are told."""
         self._previous = self.current
@@ -775,6 +794,7 @@ class Tracker:
             for det in self.detectors:
                 found += det.check(self, base, new, ds)
             found.sort(key=lambda f: f.offset)
+            found = self._guards_at_found(base, found)
             for f in found:
                 if f.point is not None:
                     self._accept(f.point)

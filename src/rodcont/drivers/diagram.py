@@ -230,7 +230,8 @@ class Diagram:
 def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
             T: float | None = None, out: str | None = None, overwrite: bool = False,
             deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
-            progress: Callable[[str], None] | None = None, meta: dict | None = None, **options) -> Diagram:
+            progress: Callable[[str], None] | None = None, meta: dict | None = None, store_every: int = 1,
+            **options) -> Diagram:
     """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``) in ``[phi_min, phi_max]``.
 
     ``options``: the fields of :class:`rodcont.drivers.trace.TraceOptions`,
@@ -272,7 +273,10 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         meta = file_meta(rod, T, N, k, "phi_L", opts, probe, dict(kind="diagram", critical_twists=np.asarray(crit),
                                                                    seeds=np.asarray(seeds),
                                                                    deflate_at=np.asarray(deflate_at), **(meta or {})))
-        writer = BranchWriter(out, meta)
+        store_every = check_number("store_every", store_every, integer=True)
+        if store_every < 1:
+            raise ValueError(f"store_every must be >= 1, got {store_every}")
+        writer = BranchWriter(out, meta, store_every=store_every)
         _mesh_group(writer, probe)
 
     def note(msg):

@@ -427,8 +427,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
           T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
           start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
           breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
-          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None,
-          **options) -> Branch:
+          store_every: int = 1, callback: Callable[[Point], None] | None = None,
+          settings: ContinuationSettings | None = None, **options) -> Branch:
     """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
 
     In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
@@ -437,8 +437,10 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     ``from_straight = PHI`` (:func:`straight_seed`). ``param`` other than
     ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
     ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
-    along the other branch. ``options``: the fields of :class:`TraceOptions`
-    (a misspelt name is a ``TypeError``).
+    along the other branch. ``store_every``: keep the solution (coefficients,
+    tangent) of every ``store_every``-th point only, and of every special point
+    and the last one (smaller files; the table keeps every point).
+    ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
     """
     try:
         opts = TraceOptions(**options)
@@ -506,7 +508,10 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     if out is not None:
         from ..branchfile import BranchWriter, check_output
         check_output(out, overwrite=overwrite)
-        writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta))
+        store_every = check_number("store_every", store_every, integer=True)
+        if store_every < 1:
+            raise ValueError(f"store_every must be >= 1, got {store_every}")
+        writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta), store_every=store_every)
         group = writer.group("/", extra_columns=(param,) if param != "phi_L" else ())
         _mesh_group(writer, system)
     recorder = Recorder(branch, writer, group)
