@@ -1,131 +1,248 @@
-"""rodcont benchmark: prints measured figures and ratios (not a test; machines are noisy).
+"""rodcont benchmark: prints each target, the measured figure, and whether it is met (not a test).
 
     python benchmarks/bench.py            # all sections
-    python benchmarks/bench.py --quick    # fewer repeats
+    python benchmarks/bench.py --quick    # fewer repeats, no dask or long-rod tail
 
-Sections
-1. One Newton iteration (residual + tangent + sparse LU + solve) for N = 15, 30, 60, 120 (k = 5).
-2. One continuation step (predictor, corrector, tangent, outputs) for the same meshes.
-3. The Gamma = 1 branch (paper values, N = 15, k = 5) from Phi = 0 through the first fold to the
-   stop guard: time, steps, Newton iterations per step, time per step.
-4. The same branch segment (Phi = 0 up to 13, just below the first fold) by a plain scipy
-   solve_bvp Lagrangian natural continuation (benchmarks/lagrangian_bvp.py), what a user
-   would otherwise write; the ratio of times.
+Machines are shared and noisy: every figure is the best of a few runs, CPU
+time of the measured process where a whole process is timed. Sections:
+
+1. Process floor: ``python -c "import numpy, scipy.sparse.linalg"`` against
+   ``rodcont --version`` (target 1.15x) and ``rodcont trace --gamma 1 --out F.h5``
+   (target 1.5x).
+2. Per branch in one process: ``rodcont.trace(1.0, stretch_max=0.5)`` with the
+   default settings against the code before this work (commit 85b9e70, checked
+   out into a temporary directory and run in a subprocess): target a third of
+   its time. Time per continuation step at N = 15, k = 5 (target 2 ms).
+3. Accuracy per unknown: the cheapest fixed uniform mesh (k = 5) that gives the
+   Gamma = 1 and Gamma = 2 first folds to 1e-9 in Phi (against the independent
+   Lagrangian reference, tests/data/lagrangian_folds.json), and its time.
+4. Long rods: one Newton iteration and one continuation step at N = 15, 150,
+   1500, 5000 (linear in N), peak memory.
+5. The whole Gamma = 1 diagram up to Phi = 40, whole process (target 10 s),
+   per-branch times.
+6. Many branches: a 6-Gamma sweep on a dask LocalCluster of 1 and 2 worker
+   processes (speed-up).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import resource
+import subprocess
 import sys
+import tempfile
 import time
 
-import numpy as np
-import scipy.sparse.linalg as spla
-
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "src"))
+ROOT = os.path.dirname(HERE)
+SRC = os.path.join(ROOT, "src")
+sys.path.insert(0, SRC)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 import rodcont  # noqa: E402
-from rodcont.branch import solve_equilibrium, trace  # noqa: E402
+
+BEFORE = "85b9e70"  # the code as it stood when the speed issue was filed
+ENV = dict(os.environ, PYTHONPATH=SRC, OPENBLAS_NUM_THREADS="1")
 
 
-def best_of(fn, repeats: int, inner: int) -> float:
-    """Best mean time per call over ``repeats`` batches of ``inner`` calls (seconds)."""
+def verdict(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def child_cpu(cmd, env=ENV, repeats=3, cwd=None) -> float:
+    """Best user+system CPU seconds of a whole child process."""
     best = np.inf
     for _ in range(repeats):
-        t = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        best = min(best, (time.perf_counter() - t) / inner)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if r.returncode != 0:
+            raise RuntimeError(f"{cmd}: {r.stderr}")
+        best = min(best, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime))
     return best
 
 
-def newton_iteration_table(quick: bool):
-    print("\n## 1. One Newton iteration (residual + tangent + sparse LU + solve), k = 5, Gamma = 1, Phi = 10")
-    print(f"{'N':>5} {'unknowns':>9} {'nnz':>7} {'linearise [ms]':>15} {'LU+solve [ms]':>14} {'total [ms]':>11} {'ratio to N=15':>14}")
-    base = None
-    rows = []
-    for N in (15, 30, 60, 120):
-        eq = solve_equilibrium(1.0, 10.0, N=N, k=5)
-        sysm = eq.system
-        d, x, p = sysm.disc, eq.x, sysm.params(10.0)
-        F, J, _ = d.linearise(x, p)
-        inner = 20 if quick else 50
-        t_lin = best_of(lambda: d.linearise(x, p), 3 if quick else 7, inner)
-        t_lu = best_of(lambda: spla.splu(J, permc_spec="NATURAL").solve(F), 3 if quick else 7, inner)
-        tot = t_lin + t_lu
-        base = base or tot
-        rows.append((N, tot))
-        print(f"{N:5d} {d.size:9d} {d.nnz:7d} {1e3 * t_lin:15.3f} {1e3 * t_lu:14.3f} {1e3 * tot:11.3f} {tot / base:14.2f}")
-    return rows
+def cpu(fn, repeats=3):
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - t)
+    return best, out
 
 
-def continuation_step_table(quick: bool):
-    print("\n## 2. Continuation steps (predictor, corrector, tangent, outputs), Gamma = 1, Phi = 0 to 12, k = 5")
-    print(f"{'N':>5} {'steps':>6} {'Newton it/step':>15} {'time/step [ms]':>15} {'ratio to N=15':>14}")
-    base = None
-    for N in (15, 30, 60, 120):
-        stamps = []
-        br = trace(1.0, N=N, k=5, max_steps=40, phi_max=12.0,
-                   callback=lambda pt: stamps.append((time.perf_counter(), pt.kind)))
-        regular = [t for t, kind in stamps if kind == "regular"]
-        per = (regular[-1] - regular[0]) / (len(regular) - 1)  # steps only: no start, no set-up
-        base = base or per
-        print(f"{N:5d} {br.steps:6d} {br.newton_iterations / max(br.steps, 1):15.2f} {1e3 * per:15.3f} {per / base:14.2f}")
+def section_floor(quick):
+    print("\n## 1. Process floor (CPU seconds of the whole process, best of 3)")
+    floor = child_cpu([sys.executable, "-c", "import numpy, scipy.sparse.linalg"])
+    rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
+    version = child_cpu(rc + ["--version"])
+    with tempfile.TemporaryDirectory() as d:
+        tr = child_cpu(rc + ["trace", "--gamma", "1", "--out", os.path.join(d, "F.h5"), "--overwrite", "--quiet"])
+    print(f"floor  python -c 'import numpy, scipy.sparse.linalg'   {floor:.3f} s")
+    print(f"rodcont --version                                     {version:.3f} s  ratio {version / floor:.2f}  "
+          f"target 1.15  {verdict(version / floor <= 1.15)}")
+    print(f"rodcont trace --gamma 1 --out F.h5 (defaults)         {tr:.3f} s  ratio {tr / floor:.2f}  "
+          f"target 1.5  {verdict(tr / floor <= 1.5)}")
 
 
-def gamma1_branch():
-    print("\n## 3. Gamma = 1 branch, paper values, N = 15, k = 5: Phi = 0 through the first fold to the stop guard")
-    trace(1.0, max_steps=5)  # warm caches (imports and first-call overheads excluded)
-    times = []
-    for _ in range(3):
-        br = trace(1.0)
-        times.append(br.elapsed)
+OLD_SNIPPET = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from rodcont.branch import trace
+trace(1.0, stretch_max=0.5)
+best = 1e9
+for _ in range(3):
+    t = time.process_time(); br = trace(1.0, stretch_max=0.5); best = min(best, time.process_time() - t)
+print(best, br.steps, br.folds[0]['phi_L'])
+"""
+
+
+def section_branch(quick):
+    print("\n## 2. Per branch in one process: rodcont.trace(1.0, stretch_max=0.5), default settings (CPU, best of 3)")
+    rodcont.trace(1.0, stretch_max=0.5)
+    t_new, br = cpu(lambda: rodcont.trace(1.0, stretch_max=0.5))
     f = br.folds[0]
-    print(f"time {min(times):.3f} s (best of 3; {', '.join(f'{t:.3f}' for t in times)})   target 0.3 s   "
-          f"ratio to target {min(times) / 0.3:.2f}")
-    print(f"points {len(br)}, steps {br.steps}, Newton iterations {br.newton_iterations} "
-          f"({br.newton_iterations / br.steps:.2f} per step), time per step {1e3 * min(times) / br.steps:.2f} ms")
-    print(f"first fold Phi = {f['phi_L']:.10f}, stretch = {f['stretch']:.10f}; stop: {br.stop_reason}")
-    return br, min(times)
+    print(f"now:    {t_new:.3f} s, {br.steps} steps, {br.remeshes} remeshes, fold Phi {f['phi_L']:.12f} "
+          f"(estimated error {f['error']:.1e})")
+    with tempfile.TemporaryDirectory() as d:
+        r = subprocess.run(f"git -C {ROOT} archive {BEFORE} src | tar -x -C {d}", shell=True, capture_output=True)
+        if r.returncode == 0:
+            out = subprocess.run([sys.executable, "-c", OLD_SNIPPET, os.path.join(d, "src")], env=dict(
+                os.environ, OPENBLAS_NUM_THREADS="1"), capture_output=True, text=True)
+            t_old, steps_old, phi_old = out.stdout.split()
+            t_old = float(t_old)
+            print(f"before ({BEFORE}): {t_old:.3f} s, {steps_old} steps, fold Phi {float(phi_old):.12f}")
+            print(f"ratio now / before {t_new / t_old:.2f}   target 0.33  {verdict(t_new / t_old <= 1 / 3)}")
+        else:
+            print(f"(the code before, {BEFORE}, is not in this checkout: no comparison)")
+    # time per continuation step on a fixed mesh (no error estimates, no remeshing): the steps only
+    stamps = []
+    rodcont.trace(1.0, N=15, adapt=False, max_steps=5)
+    best = np.inf
+    for _ in range(3):
+        stamps.clear()
+        t0 = time.process_time()
+        b = rodcont.trace(1.0, N=15, adapt=False, phi_max=12.0, max_error=1.0,
+                          callback=lambda pt: stamps.append((time.process_time(), str(pt.kind))))
+        reg = [t for t, kind in stamps if kind == "regular"]
+        best = min(best, (reg[-1] - reg[0]) / (len(reg) - 1))
+    print(f"one continuation step, N = 15, k = 5 (corrector, tangent, outputs): {1e3 * best:.2f} ms   target 2 ms  "
+          f"{verdict(best <= 2e-3)}   ({b.newton_iterations / b.steps:.1f} corrector iterations per step, chord and "
+          f"Newton)")
 
 
-def lagrangian_segment():
-    print("\n## 4. Phi = 0 .. 13 (just below the Gamma = 1 fold): rodcont against plain scipy solve_bvp")
-    sys.path.insert(0, HERE)
-    from lagrangian_bvp import natural_continuation
-    trace(1.0, max_steps=3)
-    br = min((trace(1.0, phi_max=13.0) for _ in range(3)), key=lambda b: b.elapsed)
-    s_rc = br.table["stretch"][-1]
-    print(f"rodcont (Eulerian, pseudo-arclength, N = 15, k = 5): {br.steps} steps: {br.elapsed:.3f} s; "
-          f"stretch at Phi = 13: {s_rc:.12f}")
-    phis = np.arange(0.0, 13.0 + 1e-9, 0.5)
-    for tol in (1e-6, 1e-8):
-        times = []
-        for _ in range(2):
+def section_accuracy(quick):
+    print("\n## 3. Accuracy per unknown: the cheapest fixed mesh (k = 5) giving the first fold to 1e-9 in Phi")
+    with open(os.path.join(ROOT, "tests", "data", "lagrangian_folds.json")) as fh:
+        ref = {r["gamma"]: r for r in json.load(fh)["primary_folds"]}
+    for gamma in (1.0, 2.0):
+        r = ref[gamma]
+        for N in range(4, 60):
+            try:
+                b = rodcont.trace(gamma, N=N, adapt=False, max_error=1.0, stretch_max=r["stretch"] + 0.05)
+            except ValueError:
+                continue
+            if not b.folds:
+                continue
+            err = abs(b.folds[0]["phi_L"] - r["phi_L"])
+            if err < 1e-9:
+                t, _ = cpu(lambda: rodcont.trace(gamma, N=N, adapt=False, max_error=1.0,
+                                                 stretch_max=r["stretch"] + 0.05))
+                print(f"Gamma = {gamma:g}: N = {N} ({6 * N * 5 + 11} unknowns): fold Phi error {err:.1e}, "
+                      f"{t:.3f} s for the branch to just past the fold")
+                break
+        t, b = cpu(lambda: rodcont.trace(gamma, stretch_max=r["stretch"] + 0.05))
+        print(f"Gamma = {gamma:g}, the default adaptive mesh: fold Phi error {abs(b.folds[0]['phi_L'] - r['phi_L']):.1e}, "
+              f"{t:.3f} s")
+
+
+def section_long(quick):
+    print("\n## 4. Long rods: one Newton iteration and one continuation step against N (k = 5)")
+    from rodcont.linalg import LU, bordered
+    from rodcont.system import RodSystem
+    print(f"{'N':>6} {'unknowns':>9} {'Newton it [ms]':>15} {'per unknown [us]':>17} {'step [ms]':>10} "
+          f"{'peak memory [MB]':>17}")
+    rod = rodcont.RodParameters()
+    for N in ((15, 150, 1500) if quick else (15, 150, 1500, 5000)):
+        s = RodSystem(rod, 1.0, N=N)
+        x = s.model.initial_guess(s.disc, s.base[1])
+        x = s.disc.newton(x, s.params(0.0)).x
+        reps = 20 if N <= 150 else 3
+
+        def newton_iteration():
+            F, J, Fp = s.linearise(x, 0.0)
+            A = bordered(J, Fp, np.full(J.shape[0], 1.0 / J.shape[0]), 0.5)
+            return LU(A).solve(np.append(F, 0.0))
+
+        newton_iteration()
+        t0 = time.process_time()
+        for _ in range(reps):
+            newton_iteration()
+        t_it = (time.process_time() - t0) / reps
+        stamps = []
+        b = rodcont.trace(1.0, N=N, adapt=False, max_error=1.0, max_steps=6 if N >= 1500 else 12, phi_max=3.0,
+                          callback=lambda pt: stamps.append(time.process_time()))
+        per = (stamps[-1] - stamps[1]) / max(len(stamps) - 2, 1)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(f"{N:6d} {s.disc.size:9d} {1e3 * t_it:15.2f} {1e6 * t_it / s.disc.size:17.2f} {1e3 * per:10.1f} "
+              f"{peak:17.0f}")
+
+
+def section_diagram(quick):
+    print("\n## 5. rodcont diagram --gamma 1 --phi-max 40, whole process (CPU), per-branch times")
+    rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
+    with tempfile.TemporaryDirectory() as d:
+        t0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r = subprocess.run(rc + ["diagram", "--gamma", "1", "--phi-max", "40", "--out", os.path.join(d, "d.h5")],
+                           env=ENV, capture_output=True, text=True)
+        t1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (t1.ru_utime - t0.ru_utime) + (t1.ru_stime - t0.ru_stime)
+    for line in r.stdout.splitlines():
+        if line.lstrip()[:2].rstrip(":").isdigit() and "points" in line:
+            print("   " + line.strip())
+    print(f"whole process {cpu_s:.2f} s CPU   target 10 s  {verdict(cpu_s <= 10.0)}")
+
+
+def section_dask(quick):
+    print("\n## 6. A 6-Gamma sweep on a dask LocalCluster of process workers")
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        print("dask.distributed is not installed (pip install 'rodcont[dask]'): skipped")
+        return
+    from rodcont.drivers.sweep import sweep
+    times = {}
+    for workers in (1, 2):
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as c, \
+                Client(c) as client, tempfile.TemporaryDirectory() as d:
             t = time.perf_counter()
-            out = natural_continuation(1.0, phis, tol=tol)
-            times.append(time.perf_counter() - t)
-        t_lag = min(times)
-        print(f"solve_bvp (Lagrangian, natural continuation, tol {tol:g}, FD Jacobians): {len(phis)} load steps, "
-              f"{out['n_solve_bvp']} calls, up to {out['max_nodes_used']} nodes: {t_lag:.3f} s; "
-              f"stretch at Phi = 13: {out['stretch'][-1]:.12f} (differs from rodcont by "
-              f"{abs(out['stretch'][-1] - s_rc):.1e}); ratio solve_bvp / rodcont: {t_lag / br.elapsed:.1f}")
+            sweep([0.0, 0.5, 1.0, 2.0, 5.0, 10.0], d, executor=client.get_executor(), stretch_max=0.5, plot=False)
+            times[workers] = time.perf_counter() - t
+        print(f"{workers} worker(s): {times[workers]:.2f} s wall")
+    print(f"speed-up on 2 workers: {times[1] / times[2]:.2f} (2 cores, shared)")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--only", nargs="*", help="sections to run: floor branch accuracy long diagram dask")
     args = ap.parse_args()
-    print(f"# rodcont {rodcont.__version__} benchmark, {time.strftime('%Y-%m-%d')}, {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}")
-    print(f"# OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
-    newton_iteration_table(args.quick)
-    continuation_step_table(args.quick)
-    gamma1_branch()
-    lagrangian_segment()
+    print(f"# rodcont {rodcont.__version__} benchmark, {time.strftime('%Y-%m-%d')}, {platform.machine()}, "
+          f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, "
+          f"load average {os.getloadavg()[0]:.2f}")
+    sections = dict(floor=section_floor, branch=section_branch, accuracy=section_accuracy, long=section_long,
+                    diagram=section_diagram, dask=section_dask)
+    for name, fn in sections.items():
+        if args.only and name not in args.only:
+            continue
+        if args.quick and name == "dask":
+            continue
+        fn(args.quick)
 
 
 if __name__ == "__main__":

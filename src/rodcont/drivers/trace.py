@@ -116,15 +116,20 @@ OPTION_NAMES = tuple(f.name for f in fields(TraceOptions))
 class Accuracy:
     """The estimated error of each point, cheap where it is small.
 
-    The full estimate (one Newton step on the halved mesh) costs a few steps;
-    between two of them the error is taken proportional to the defect (the
-    residual between collocation points, computed at every point anyway),
-    with the ratio of the last measurement. It is measured again at every
-    special point, whenever the defect has changed sixteenfold since (or
-    doubled, once the guess is within a fiftieth of the adaptation
-    threshold), every ``every`` points, and whenever the guess comes within
-    half of the threshold.
+    The full estimate (one Newton step in the richer space) costs a few
+    steps; between two of them the error is taken proportional to the defect
+    (the residual between collocation points, computed at every point
+    anyway), with the ratio of the last measurement. Before the first
+    measurement on a mesh the ratio is a pessimistic prior, ``PRIOR = 1e-2``
+    (measured along the paper's branches it is 1e-6 to 1e-4): a mesh that
+    obviously resolves the solution is not measured at all. It is measured at
+    every fold, branch point and event, whenever the defect has changed
+    sixteenfold since (or doubled, once the guess is within a fiftieth of the
+    adaptation threshold), every ``every`` points, and whenever the guess
+    comes within half of the threshold.
     """
+
+    PRIOR = 1e-2
 
     def __init__(self, max_error: float, every: int = 25):
         self.max_error = max_error
@@ -158,9 +163,15 @@ class Accuracy:
     def __call__(self, system: RodSystem, pt: Point) -> float:
         d = max(float(pt.data.get("defect", 0.0)), 1e-300)
         self.since += 1
-        special = pt.kind not in (Kind.REGULAR,)
-        e = self.ratio * d if self.ratio is not None else math.inf
-        drift = d > 16 * self.defect or d < self.defect / 16 if self.ratio is not None else True
+        special = pt.kind not in (Kind.REGULAR, Kind.START)
+        if self.ratio is None:  # nothing measured on this mesh yet: the pessimistic prior
+            e = self.PRIOR * d
+            if special or e > self.trigger / 2:
+                return self.measure(system, pt)
+            pt.data["error"] = e
+            return e
+        e = self.ratio * d
+        drift = d > 16 * self.defect or d < self.defect / 16
         if (special or drift or self.since >= self.every or e > self.trigger / 2
                 or (d > 2 * self.defect and e > self.trigger / 50)):
             return self.measure(system, pt)
@@ -320,7 +331,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 accuracy.reset()
                 continue
             steps += tracker.steps
-            err = accuracy.measure(sysm, first)
+            err = accuracy(sysm, first)
             if err > accuracy.trigger and o.adapt and start_attempts < 6 and sysm.disc.N < o.N_max:
                 start_attempts += 1
                 seg = _remesh(sysm, first, err, accuracy, o)
