@@ -117,7 +117,7 @@ def start_frame(t0, K1=None) -> tuple[np.ndarray, np.ndarray]:
     return K1, np.cross(t0, K1)
 
 
-def frame_jets(k, D1, D2):
+def frame_jets(k, D1, D2, twist: bool = True):
     """``r', r'', r'''`` of ``r = R + D1 K1 + D2 K2`` in frame components ``(v.K1, v.K2, v.K3)``.
 
     ``k``: ``(3, 3, npts)``, ``k[a, j]`` the ``j``-th derivative of ``k_{a+1}``;
@@ -131,18 +131,30 @@ def frame_jets(k, D1, D2):
         r'' = A1 + omega x A0
         r''' = A2 + omega' x A0 + 2 omega x A1 + omega x (omega x A0)
 
-    Pure arithmetic: complex jets (the complex step) pass through.
+    Pure arithmetic: complex jets (the complex step) pass through. Written out
+    in components (``Delta`` has no third component; ``twist=False`` drops
+    the ``k3`` terms, zero for a Bishop frame).
     """
-    w = [np.stack([-k[1, j], k[0, j], k[2, j]]) for j in range(3)]
-    zero = np.zeros_like(D1[0])
-    Dl = [np.stack([D1[j], D2[j], zero]) for j in range(4)]
-    A0 = Dl[1] + _cross(w[0], Dl[0])
-    A0[2] += 1.0
-    A1 = Dl[2] + _cross(w[1], Dl[0]) + _cross(w[0], Dl[1])
-    A2 = Dl[3] + _cross(w[2], Dl[0]) + 2.0 * _cross(w[1], Dl[1]) + _cross(w[0], Dl[2])
-    wA0 = _cross(w[0], A0)
+    k1, k2 = k[0], k[1]
+    a0, a1, a2, a3 = D1
+    b0, b1, b2, b3 = D2
+    # omega^(j) x Delta^(i) = (-k3^(j) D2^(i), k3^(j) D1^(i), -(k1^(j) D1^(i) + k2^(j) D2^(i)))
+    A0 = np.stack([a1, b1, 1.0 - (k1[0] * a0 + k2[0] * b0)])
+    A1 = np.stack([a2, b2, -(k1[1] * a0 + k2[1] * b0) - (k1[0] * a1 + k2[0] * b1)])
+    A2 = np.stack([a3, b3, -(k1[2] * a0 + k2[2] * b0) - 2.0 * (k1[1] * a1 + k2[1] * b1) - (k1[0] * a2 + k2[0] * b2)])
+    if twist:
+        k3 = k[2]
+        A0[0] -= k3[0] * b0
+        A0[1] += k3[0] * a0
+        A1[0] -= k3[1] * b0 + k3[0] * b1
+        A1[1] += k3[1] * a0 + k3[0] * a1
+        A2[0] -= k3[2] * b0 + 2.0 * k3[1] * b1 + k3[0] * b2
+        A2[1] += k3[2] * a0 + 2.0 * k3[1] * a1 + k3[0] * a2
+    w0 = np.stack([-k2[0], k1[0], k[2, 0]])
+    w1 = np.stack([-k2[1], k1[1], k[2, 1]])
+    wA0 = _cross(w0, A0)
     r2 = A1 + wA0
-    r3 = A2 + _cross(w[1], A0) + 2.0 * _cross(w[0], A1) + _cross(w[0], wA0)
+    r3 = A2 + _cross(w1, A0) + _cross(w0, 2.0 * A1 + wA0)
     return A0, r2, r3
 
 
@@ -285,6 +297,27 @@ class ReferenceCurve:
                 return float(ang[-1])
             per *= 2
         return float(ang[-1])
+
+    @property
+    def curvature_jumps(self) -> np.ndarray:
+        """Interior breakpoints where the curvature vector ``(k1, k2)`` jumps (a well's stations).
+
+        There the Eulerian fields are not smooth: the rod's own curvature is
+        continuous (no point moment) while the reference's jumps, so ``Delta''``
+        jumps by about ``-(jump of k)``; and the sections turn at a rate that
+        jumps, so ``s'(S)``, ``Delta'`` (by ``h = 1 - k.Delta``) and ``phi'`` jump
+        wherever ``Delta != 0``. The spline spaces keep ``Delta`` C^2 and ``phi``
+        C^1 across every breakpoint: a curve with such points needs reduced
+        continuity there and interface conditions (not in the collocation core).
+        """
+        b = self.breakpoints[1:-1]
+        if b.size == 0:
+            return b
+        eps = 1e-9 * self.length
+        left, right = self.jet(b - eps).k, self.jet(b + eps).k
+        scale = np.max(np.abs(np.concatenate([left[:2, 0], right[:2, 0]], axis=1)), initial=0.0) + 1.0 / self.length
+        jump = np.max(np.abs(left[:2, 0] - right[:2, 0]), axis=0)
+        return b[jump > 1e-6 * scale]
 
     def mesh(self, N: int) -> np.ndarray:
         """``N`` subintervals containing every breakpoint: each piece gets a share proportional to its length

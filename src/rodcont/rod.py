@@ -16,11 +16,31 @@ with ``u_perp = alpha (r' x r'')/n^3``, ``m = GJ J1 (phi' + tau_q)``,
 ``J1 = alpha/n`` and the twist rate of the minimal-rotation frame
 ``tau_q = -p.(d3 x d3')/(1 + p.d3)``. Everything is an explicit, analytic
 function of the local jet, so the complex step gives the exact Jacobian.
+
+Moving frame (any smooth reference curve, :mod:`rodcont.curves`). The frame
+turns with ``S``: ``K3' = k1 K1 + k2 K2``, ``K1' = k3 K2 - k1 K3``,
+``K2' = -k3 K1 - k2 K3`` (``k3 = 0`` for the Bishop frames of the built-in
+curves), i.e. ``v' = [v]' + omega x v`` in frame components with
+``omega = (-k2, k1, k3)``. Still in the components of the local frame, what
+changes is (the rest is the same expression of ``r', r'', r'''``)::
+
+    r'   = (Delta1' - k3 Delta2, Delta2' + k3 Delta1, 1 - k1 Delta1 - k2 Delta2)
+    r''  = [r']' + omega x r',   r''' = [r'']' + omega x r''       (K' and K'' terms)
+    F'   = [F]' + omega x F      (in the force balance and in alpha')
+    f    = w g_K(S)              (the weight is global: its frame components vary)
+    tau_q  = k3 + [d3.(p x p') - p.(d3 x d3')] / (1 + p.d3),  p = K3, p' = K3'
+    tau_q' = k3' + N'/D - N D'/D^2   (N, D numerator and denominator of the fraction)
+
+For a straight reference (``k = 0``) every added term vanishes; that case
+keeps its own, cheaper residual. The end twist condition becomes
+``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
+between the ends (:attr:`rodcont.curves.ReferenceCurve.end_twist`).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, asdict
 
 import numpy as np
@@ -132,25 +152,61 @@ class EulerianRod:
     ``phi(0) = 0``, ``phi(L) = phi_L``, axial force ``F . K3 = T`` at ``S = L``.
 
     Parameters vector ``p = (phi_L, T, w, EI, GJ, EA)``.
+
+    ``curve`` (default: the straight span ``0 .. L e1``) is any
+    :class:`rodcont.curves.ReferenceCurve` whose ``span`` is ``rod.L``. The
+    domain is ``S in [0, curve.length]``; ``stretch = (l - L)/L`` and
+    ``Gamma = T/(w L)`` stay measured on the span ``L``. A curve with a
+    constant frame (:class:`rodcont.curves.Straight`) runs the frame-component
+    residual of the straight rod unchanged; any other curve runs the
+    moving-frame residual (:meth:`_residual_curved`). With a curve whose frame
+    turns by ``beta = curve.end_twist`` between the ends, the end condition is
+    ``phi(end) = phi_L - beta``, so that ``phi_L`` stays the physical turn of
+    the end clamp relative to the start clamp (see
+    :attr:`rodcont.curves.ReferenceCurve.end_twist`).
     """
 
     def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None):
         self.rod = rod or RodParameters()
         self.curve = curve or StraightReference(self.rod.L)
-        if not self.curve.constant_frame:
-            raise NotImplementedError("only reference curves with a constant frame are implemented")
-        if abs(self.curve.length - self.rod.L) > 1e-14 * self.rod.L:
-            raise ValueError("the reference curve length must equal L")
-        self.pole = self.curve.K3
-        self.K1, self.K2 = self.curve.K1, self.curve.K2
+        if not isinstance(self.curve, ReferenceCurve):
+            raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {self.curve!r}")
+        self.constant_frame = bool(self.curve.constant_frame)
         self.g = np.asarray(self.rod.weight_direction, float)
-        self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
-        self.gK = self.frame @ self.g  # weight direction in frame components
-        # The residual reads the jets through r' and its derivatives: with a constant frame the
-        # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
-        unused = (Jet.D1[0], Jet.D2[0], Jet.PHI[0])
+        if self.constant_frame:
+            if abs(self.curve.length - self.rod.L) > 1e-14 * self.rod.L:
+                raise ValueError("the reference curve length must equal L")
+            self.pole = self.curve.K3
+            self.K1, self.K2 = self.curve.K1, self.curve.K2
+            self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
+            self.gK = self.frame @ self.g  # weight direction in frame components
+            self.twist_offset = 0.0
+            interval = (0.0, self.rod.L)
+            # The residual reads the jets through r' and its derivatives: with a constant frame the
+            # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
+            unused = (Jet.D1[0], Jet.D2[0], Jet.PHI[0])
+        else:
+            if abs(self.curve.span - self.rod.L) > 1e-12 * self.rod.L:
+                raise ValueError(f"the span of the reference curve ({self.curve.span:.15g}) must equal the rod's "
+                                 f"L ({self.rod.L:.15g}): stretch and Gamma are measured on the span "
+                                 f"(use RodParameters(L=curve.span))")
+            self._curve_cache: dict = {}
+            self.twist_offset = float(self.curve.end_twist)
+            jumps = self.curve.curvature_jumps
+            if jumps.size:
+                warnings.warn(f"the reference curve's curvature jumps at {jumps.size} point(s) (S = "
+                              f"{', '.join(f'{v:.6g}' for v in jumps[:4])}{', ...' if jumps.size > 4 else ''}): "
+                              f"there Delta'' of the exact solution jumps by about minus the jump of the curvature "
+                              f"(and Delta', phi' jump wherever Delta != 0), which the C^2 (Delta) / C^1 (phi) "
+                              f"splines cannot follow: the discrete rod carries a spurious moment of about "
+                              f"EI |jump of k| at each such point, an error that does not decrease with the mesh",
+                              RuntimeWarning, stacklevel=2)
+            interval = (0.0, float(self.curve.length))
+            # with a turning frame Delta1, Delta2 enter through omega x Delta; phi still does not
+            unused = (Jet.PHI[0],)
+        self.interval = interval
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
-                                 interval=(0.0, self.rod.L), params=PARAMS, names=FIELDS,
+                                 interval=interval, params=PARAMS, names=FIELDS,
                                  jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
                                  residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")])
 
@@ -174,6 +230,8 @@ class EulerianRod:
 
     def residual(self, S, z, p):
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
+        if not self.constant_frame:
+            return self._residual_curved(S, z, p)
         phi_L, T, w, EI, GJ, EA = p
         r1, r2, r3 = self._frame_jets(z)
         F = z[Jet.F]
@@ -207,17 +265,130 @@ class EulerianRod:
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def bc(self, za, zb, p):
-        """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(L) = phi_L``, tension."""
+        """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta``
+        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``."""
         phi_L, T = p[0], p[1]
         D1, D2, PHI = Jet.D1, Jet.D2, Jet.PHI
+        end_phi = phi_L if self.constant_frame else phi_L - self.twist_offset
         return np.stack([za[D1[0]], za[D1[1]], za[D2[0]], za[D2[1]], zb[D1[0]], zb[D1[1]], zb[D2[0]], zb[D2[1]],
-                         za[PHI[0]], zb[PHI[0]] - phi_L, zb[Jet.F[2]] - T])
+                         za[PHI[0]], zb[PHI[0]] - end_phi, zb[Jet.F[2]] - T])
+
+    # ---- the moving frame ------------------------------------------------------
+    def _curve_data(self, S):
+        """Curvatures ``k`` ``(3, 3, n)``, the weight direction in frame components ``(3, n)`` at ``S``, and
+        whether the frame twists (``k3 != 0``) there.
+
+        Cached by the content of ``S``: the residual is evaluated again and again
+        at the same points (collocation points, their complex-step copies, check points).
+        """
+        S = np.asarray(S, float)
+        key = S.tobytes()
+        hit = self._curve_cache.get(key)
+        if hit is None:
+            u, inv = np.unique(S, return_inverse=True)
+            j = self.curve.jet(u)
+            gK = np.einsum("ain,i->an", j.K, self.g)
+            hit = (np.ascontiguousarray(j.k[:, :, inv]), np.ascontiguousarray(gK[:, inv]), bool(np.any(j.k[2])))
+            if len(self._curve_cache) >= 24:
+                self._curve_cache.pop(next(iter(self._curve_cache)))
+            self._curve_cache[key] = hit
+        return hit
+
+    def _curved_jets(self, S, z):
+        """``r', r'', r'''`` (frame components), the curvatures and the weight direction at ``S``."""
+        k, gK, twist = self._curve_data(S)
+        return frame_jets(k, z[list(Jet.D1)], z[list(Jet.D2)], twist), k, gK
+
+    def _residual_curved(self, S, z, p):
+        """The residual with a moving frame, every vector in the components of the local frame ``K(S)``.
+
+        What differs from the straight residual (``omega = (-k2, k1, k3)``, the
+        frame's Darboux vector, so ``v' = [v]' + omega x v``):
+
+        * ``r', r'', r'''`` carry the frame's rotation (:func:`rodcont.curves.frame_jets`);
+        * the force's derivative is ``F' = [F]' + omega x F`` (``[F]'`` the derivative of
+          its components, the unknowns), in the force balance
+          ``F' + (w |r'| / alpha) g_K(S) = 0`` (``g_K`` the weight direction in the local
+          frame) and in ``alpha' = (F'.d3 + F.d3') / EA``;
+        * the pole ``p = K3`` turns: ``p' = (k1, k2, 0)``,
+          ``p'' = (k1' - k3 k2, k2' + k3 k1, -(k1^2 + k2^2))``, and the twist rate of
+          the untwisted frame gains the pole's terms::
+
+              tau_q  = k3 + N / D,  N = d3.(p x p') - p.(d3 x d3'),  D = 1 + p.d3
+              tau_q' = k3' + N'/D - N D'/D^2,
+              N' = d3'.(p x p') + d3.(p x p'') - p'.(d3 x d3') - p.(d3 x d3''),  D' = p'.d3 + p.d3'
+
+        The moment equations are still projected on ``K1, K2`` (the first two
+        local components).
+        """
+        phi_L, T, w, EI, GJ, EA = p
+        (r1, r2, r3), k, gK = self._curved_jets(S, z)
+        F = z[Jet.F]
+        Fp = z[Jet.FP]
+        phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
+        n2 = _dot(r1, r1)
+        n = np.sqrt(n2)
+        d3 = r1 / n
+        c = _dot(r1, r2)
+        d3r2 = _dot(d3, r2)
+        e = r2 - d3 * d3r2
+        d3p = e / n
+        n3 = n2 * n
+        d3pp = (r3 - d3p * d3r2 - d3 * (_dot(d3p, r2) + _dot(d3, r3))) / n - e * (c / n3)
+        k1, k2, k3 = k[0, 0], k[1, 0], k[2, 0]
+        # the true derivative of the force: F' = [F]' + omega x F
+        Ft = np.stack([Fp[0] + k1 * F[2] - k3 * F[1], Fp[1] + k2 * F[2] + k3 * F[0], Fp[2] - k1 * F[0] - k2 * F[1]])
+        alpha = 1.0 + _dot(F, d3) / EA
+        alphap = (_dot(Ft, d3) + _dot(F, d3p)) / EA
+        bend = _cross(r1, r2)
+        uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
+        J1 = alpha / n
+        J1p = alphap / n - alpha * c / n3
+        # the moving pole p = K3 = (0, 0, 1) in its own frame; p x v = (-v1, v0, 0)
+        pd = 1.0 + d3[2]
+        dxd = _cross(d3, d3p)
+        N = k1 * d3[1] - k2 * d3[0] - dxd[2]
+        P20 = k[0, 1] - k3 * k2
+        P21 = k[1, 1] + k3 * k1
+        Np = ((k1 * d3p[1] - k2 * d3p[0]) + (P20 * d3[1] - P21 * d3[0])
+              - (k1 * dxd[0] + k2 * dxd[1]) - (d3[0] * d3pp[1] - d3[1] * d3pp[0]))
+        pdp = k1 * d3[0] + k2 * d3[1] + d3p[2]
+        tau = k3 + N / pd
+        taup = k[2, 1] + Np / pd - N * pdp / pd**2
+        twist = phi1 + tau
+        m = GJ * J1 * twist
+        mp = GJ * (J1p * twist + J1 * (phi2 + taup))
+        EF = Ft + (w * n / alpha) * gK
+        EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
+        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+
+    def _axial_curved(self, S, z, p):
+        """:meth:`_axial_quantities` with a moving frame."""
+        phi_L, T, w, EI, GJ, EA = p
+        (r1, r2, _), k, _ = self._curved_jets(S, z)
+        n = np.sqrt(_dot(r1, r1))
+        d3 = r1 / n
+        F = z[Jet.F]
+        d3p = (r2 - d3 * _dot(d3, r2)) / n
+        alpha = 1.0 + _dot(F, d3) / EA
+        N = k[0, 0] * d3[1] - k[1, 0] * d3[0] - (d3[0] * d3p[1] - d3[1] * d3p[0])
+        tau = k[2, 0] + N / (1.0 + d3[2])
+        m = GJ * alpha / n * (z[Jet.PHI[1]] + tau)
+        return m, alpha, n, d3
 
     def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
+        """Collocation on ``N`` uniform subintervals of ``[0, curve.length]`` (or on ``breakpoints``).
+
+        A curve with interior breakpoints (a well's stations) gets ``N``
+        subintervals that contain them (:meth:`rodcont.curves.ReferenceCurve.mesh`);
+        given ``breakpoints`` must contain them too.
+        """
         if breakpoints is None:
             if not (isinstance(N, (int, np.integer)) and N >= 1):
                 raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N!r}")
             breakpoints = int(N)
+            if not self.constant_frame and self.curve.breakpoints.size > 2:
+                breakpoints = self.curve.mesh(int(N))
         return Collocation(self.problem, breakpoints, k)
 
     def initial_guess(self, disc: Collocation, T: float) -> np.ndarray:
@@ -225,7 +396,11 @@ class EulerianRod:
 
         ``F' = -w g`` split into its transverse part (shared equally by the two
         clamps) and its axial part (``F . K3 = T`` at ``S = L``); frame components.
+        With a moving frame: the rod on the reference curve, the same split with
+        the end tangent ``K3(end)`` as the axis and the curve's length for ``L``.
         """
+        if not self.constant_frame:
+            return self._initial_guess_curved(disc, T)
         L, w, gK = self.rod.L, self.rod.w, self.gK
         axis = np.array([0.0, 0.0, 1.0])
         ga = float(gK[2])
@@ -235,10 +410,29 @@ class EulerianRod:
                   for a in range(3)]
         return disc.project(comps)
 
+    def _initial_guess_curved(self, disc: Collocation, T: float) -> np.ndarray:
+        L, w, g = self.curve.length, self.rod.w, self.g
+        tL = self.curve.frame(np.array([L]))[2][:, 0]
+        ga = float(g @ tL)
+        gt = g - ga * tL
+
+        def component(a):
+            def f(S):
+                S = np.atleast_1d(np.asarray(S, float))
+                Fg = T * tL[:, None] - w * gt[:, None] * (S - 0.5 * L) - w * ga * tL[:, None] * (S - L)
+                return _dot(Fg, self.curve.frame(S)[a])
+            return f
+
+        zero = lambda S: 0 * S  # noqa: E731
+        return disc.project([zero, zero, zero, component(0), component(1), component(2)])
+
     def force(self, disc: Collocation, x: np.ndarray, S) -> np.ndarray:
         """Internal force ``F(S)`` in global components, ``(3, len(S))``."""
         S = np.atleast_1d(np.asarray(S, float))
         FK = np.stack([disc.evaluate(x, S, i) for i in (3, 4, 5)])
+        if not self.constant_frame:
+            K = self.curve.jet(S).K
+            return K[0] * FK[0] + K[1] * FK[1] + K[2] * FK[2]
         return self.frame.T @ FK
 
     # ---- derived outputs -------------------------------------------------
@@ -267,6 +461,8 @@ class EulerianRod:
 
     def _axial_quantities(self, S, z, p):
         """Torque ``m``, stretch ``alpha``, ``n = |r'|`` and ``d3`` (frame components) at points ``S``."""
+        if not self.constant_frame:
+            return self._axial_curved(S, z, p)
         phi_L, T, w, EI, GJ, EA = p
         r1, r2, _ = self._frame_jets(z)
         n = np.sqrt(_dot(r1, r1))
@@ -293,6 +489,11 @@ class EulerianRod:
         phi = disc.evaluate(x, S, 2, 0)
         _, r1, *_ = self.curve.centreline_jets(S, D1, D2)
         d3 = r1 / np.sqrt(_dot(r1, r1))
+        if not self.constant_frame:  # minimal rotation taking the moving pole K3(S) onto d3
+            K = self.curve.jet(S).K
+            a1, a2 = minimal_rotation(K[2], d3, K[0]), minimal_rotation(K[2], d3, K[1])
+            c, s = np.cos(phi), np.sin(phi)
+            return np.stack([c * a1 + s * a2, -s * a1 + c * a2, d3])
         P = self.pole[:, None]
         kx = _cross(np.broadcast_to(P, d3.shape), d3)  # sin(theta) * axis
         cth = _dot(np.broadcast_to(P, d3.shape), d3)
@@ -356,8 +557,17 @@ class _Outputs:
         l = disc.integrate(n)
         l0 = disc.integrate(n / alpha)
         D1, D2, d1p, d2p, zm, zc = self._split(x)
-        # alignment d3 . K3 on the sample grid (straight reference: K3 constant)
-        align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
+        if model.constant_frame:
+            # alignment d3 . K3 on the sample grid (straight reference: K3 constant)
+            align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
+        else:
+            # r' = (D1' - k3 D2, D2' + k3 D1, 1 - k1 D1 - k2 D2) in the local frame: d3 . K3 = r'_3 / |r'|;
+            # the slope relative to the reference curve (for the helical waves) is (r'_1, r'_2) / r'_3
+            k = model._curve_data(self.S)[0]
+            t1, t2 = d1p - k[2, 0] * D2, d2p + k[2, 0] * D1
+            t3 = 1.0 - k[0, 0] * D1 - k[1, 0] * D2
+            align = t3 / np.sqrt(t1**2 + t2**2 + t3**2)
+            d1p, d2p = t1 / t3, t2 / t3
         m_mesh = model._axial_quantities(self.disc.breakpoints, zm, p)[0]
         G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
         return dict(stretch=(l - L) / L, torque=float(np.mean(m_mesh)), l=l, l0=l0,
