@@ -16,7 +16,7 @@ from .continuation import Kind, Point
 from .rod import RodParameters
 
 OUTPUTS = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "defect")
-COLUMNS = OUTPUTS + ("error", "arclength", "dphi_ds", "kind", "located")
+COLUMNS = OUTPUTS + ("error", "unstable_modes", "arclength", "dphi_ds", "kind", "located")
 
 
 @dataclass
@@ -59,6 +59,7 @@ class Branch:
         for name in OUTPUTS:
             self.table[name].append(pt.data[name])
         self.table["error"].append(float(pt.data.get("error", np.nan)))
+        self.table["unstable_modes"].append(int(pt.data.get("unstable_modes", -1)))
         self.table["arclength"].append(pt.arclength)
         self.table["dphi_ds"].append(float(pt.tp) if self.param == "phi_L" else 0.0)
         self.table["kind"].append(str(pt.kind))
@@ -104,7 +105,8 @@ class Branch:
         is the fewest helical waves on that arc, back to the previous fold or
         the end of the branch; ``waves_after`` the waves at the fold, which the
         arc of larger stretch leaves with. A fold "adds a wave" when
-        ``waves_after > waves_before``.
+        ``waves_after > waves_before``. ``unstable_before``, ``unstable_after``:
+        the unstable modes on the two sides next to the fold (-1: not counted).
         """
         kinds = self.table["kind"]
         waves = self.table["helical_waves"]
@@ -118,11 +120,16 @@ class Branch:
             prev_arc = list(range(lo, i))
             next_arc = list(range(i + 1, hi))
             before = self._smaller_stretch_side(i, prev_arc, next_arc, stretch)
+            after = next_arc if before is prev_arc else prev_arc
             wb = min((waves[q] for q in before), default=waves[i])
+            um = self.table["unstable_modes"]
+            ub = um[before[-1] if before is prev_arc else before[0]] if before else -1
+            ua = um[after[0] if after is next_arc else after[-1]] if after else -1
             out.append(dict(index=i, phi_L=self.table["phi_L"][i], stretch=stretch[i],
                             torque=self.table["torque"][i], l0=self.table["l0"][i],
                             waves_before=int(wb), waves_after=int(waves[i]),
-                            located=bool(self.table["located"][i]), error=self.table["error"][i]))
+                            located=bool(self.table["located"][i]), error=self.table["error"][i],
+                            unstable_before=int(ub), unstable_after=int(ua)))
         return out
 
     @staticmethod

@@ -10,6 +10,7 @@ Layout (names are read by other tools; keep them)::
     /branch/torque         (n,)   axial moment GJ u3
     /branch/l0             (n,)   unstressed length inside the span
     /branch/helical_waves  (n,)   int
+    /branch/unstable_modes (n,)   unstable modes under the trace's controls (-1: not counted)
     /branch/min_alignment  (n,)   min over S of d3 . K3
     /branch/arclength      (n,)   pseudo-arclength of the tracker
     /branch/defect         (n,)   relative residual between collocation points (indicator)
@@ -21,7 +22,8 @@ Layout (names are read by other tools; keep them)::
     /branch/coefficients   (n, m) unknown vector x of each point, NaN-padded (meshes differ)
     /branch/breakpoints    (n, N+1) the partition each point lives on, NaN-padded
     /branch/tangent        (n, m+1) unit tangent (x part, then parameter), float32, NaN-padded
-    /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index, located
+    /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index, located,
+           unstable_before, unstable_after (the two sides of the fold: smaller stretch first)
     /branch_points/index, phi_L, stretch
     /mesh/breakpoints      (N+1,) the first partition; attrs: k, orders, fields, layout
 
@@ -57,7 +59,8 @@ import numpy as np
 from . import __version__
 
 SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "error", "dphi_ds")
-FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located")
+FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located",
+               "unstable_before", "unstable_after")
 MAGIC = b"RODCONT-BRANCH-FILE\x00"
 HEADER = 512
 
@@ -192,6 +195,7 @@ class _Group:
         for name in self.columns:
             g.create_dataset(name, (0,), maxshape=(None,), dtype="f8", chunks=(256,), compression="gzip")
         g.create_dataset("helical_waves", (0,), maxshape=(None,), dtype="i4", chunks=(256,), compression="gzip")
+        g.create_dataset("unstable_modes", (0,), maxshape=(None,), dtype="i4", chunks=(256,), compression="gzip")
         g.create_dataset("located", (0,), maxshape=(None,), dtype="i1", chunks=(256,), compression="gzip")
         g.create_dataset("kind", (0,), maxshape=(None,), dtype=h5py.string_dtype(), chunks=(256,))
         self.width = 0
@@ -218,7 +222,7 @@ class _Group:
             ds.resize(i + 1, axis=0)
             ds[i] = float(row[name])
         for name, val in (("helical_waves", int(row["helical_waves"])), ("located", int(bool(located))),
-                          ("kind", str(kind))):
+                          ("unstable_modes", int(row.get("unstable_modes", -1))), ("kind", str(kind))):
             ds = g[name]
             ds.resize(i + 1, axis=0)
             ds[i] = val
@@ -375,6 +379,16 @@ class BranchData:
         a = self.attrs
         return RodParameters(EI=a["EI"], GJ=a["GJ"], EA=a["EA"], w=a["w"], L=a["L"],
                              weight_direction=tuple(a.get("weight_direction", (0.0, 0.0, -1.0))))
+
+    @property
+    def curve(self):
+        """The reference curve the file's solutions are written on (``reference`` attribute)."""
+        from .curves import parse_reference
+        spec = str(self.attrs.get("reference", "straight"))
+        try:
+            return parse_reference(spec, float(self.attrs["L"]))
+        except ValueError as exc:
+            raise BranchFileError(f"{self.path}: damaged branch file (reference {spec!r}: {exc})") from None
 
     @property
     def gamma(self) -> float:

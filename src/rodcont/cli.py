@@ -47,7 +47,7 @@ def _number(name, positive=False, nonnegative=False):
 ROD_OPTION_NAMES = ("N", "k", "w", "EI", "GJ", "EA", "L")
 
 # --config FILE.toml: sections and the options their keys set (any trace option goes in [trace])
-CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction"), "loads": ("gamma", "T", "phi"),
+CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction", "reference"), "loads": ("gamma", "T", "phi"),
                    "mesh": ("N", "k", "N_max", "uniform")}
 
 
@@ -108,10 +108,11 @@ def rod_options(f):
     import functools
 
     @functools.wraps(f)
-    def wrapper(*args, T=None, weight_direction=(0.0, 0.0, -1.0), config=None, **kwargs):
+    def wrapper(*args, T=None, weight_direction=(0.0, 0.0, -1.0), config=None, reference="straight", **kwargs):
         ctx = click.get_current_context()
         ctx.meta["rodcont.T"] = T
         ctx.meta["rodcont.weight_direction"] = weight_direction
+        ctx.meta["rodcont.reference"] = reference
         _echo_config(ctx)
         return f(*args, **kwargs)
 
@@ -129,6 +130,9 @@ def rod_options(f):
                      help="weight per unit unstressed length (>= 0)"),
         click.option("--weight-direction", default=None, callback=_weight_direction,
                      help="direction of the weight X,Y,Z [default: 0,0,-1]; the span runs along e1"),
+        click.option("--reference", default="straight", show_default=True,
+                     help="reference curve KIND[:ARGS]: straight, bump:H,THETA, wiggle:H2,H3, arc:ANGLE[,THETA], "
+                          "helix:RADIUS,TURNS, well:FILE (the rod is described as a perturbation of it)"),
         click.option("--EI", "EI", type=float, default=1.0, show_default=True, callback=_number("--EI", positive=True),
                      help="bending stiffness"),
         click.option("--GJ", "GJ", type=float, default=0.75, show_default=True, callback=_number("--GJ", positive=True),
@@ -178,6 +182,7 @@ def _echo_config(ctx) -> None:
     params = dict(ctx.params)
     params["T"] = ctx.meta.get("rodcont.T")
     params["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
+    params["reference"] = ctx.meta.get("rodcont.reference", "straight")
     text = config_toml(params)
     ctx.meta["rodcont.config"] = text
     src = ctx.meta.get("rodcont.config_file")
@@ -250,6 +255,25 @@ def _rod(w, EI, GJ, EA, L):
         return RodParameters(EI=EI, GJ=GJ, EA=EA, w=w, L=L, weight_direction=wd)
     except (ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
+
+
+def _curve(rod, straight_only: str | None = None):
+    """The --reference curve for ``rod`` (None for the straight span); ``straight_only`` names a
+    command that needs the straight reference."""
+    spec = click.get_current_context().meta.get("rodcont.reference", "straight") or "straight"
+    if spec.strip() == "straight":
+        return None
+    if straight_only:
+        raise UserError(f"{straight_only} needs the straight reference (the straight rod state lives there); "
+                        f"got --reference {spec}")
+    from .curves import parse_reference
+    try:
+        curve = parse_reference(spec, rod.L)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if abs(curve.span - rod.L) > 1e-9 * rod.L:
+        raise UserError(f"--reference {spec}: its span {curve.span:g} differs from --L {rod.L:g}; give --L {curve.span:g}")
+    return curve
 
 
 def _tension(gamma, rod):
@@ -433,7 +457,7 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     rod = _rod(w, EI, GJ, EA, L)
     gamma, T = _tension(gamma, rod)
     try:
-        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T)
+        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T, curve=_curve(rod))
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     o = eq.outputs
@@ -503,7 +527,10 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         if switch and pt["kind"] != "branch_point":
             raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
         _check_out(out, [data.path], overwrite)
+        if _explicit("reference"):
+            raise UserError("a restart keeps the start file's reference curve: drop --reference")
         rod, T = data.rod, data.tension
+        extra["curve"] = data.curve
         k = int(data.attrs["k"])
         b = pt["breakpoints"]
         x0 = pt["x"]
@@ -538,6 +565,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
             raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
         gamma, T = _tension(gamma, rod)
         gamma = None
+        extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
         if from_straight is not None:
             extra["from_straight"] = from_straight
             if param != "phi_L":
@@ -617,6 +645,7 @@ def _fold_table(data):
     located = f.get("located", [1] * len(f["index"]))
     for j in range(len(f["index"])):
         mark = "  (+1 wave)" if f["waves_after"][j] > f["waves_before"][j] else ""
+        mark += _stable_side(f, j)
         mark += "" if located[j] else "  (bracketed, not located)"
         click.echo(f"F{j + 1:<3d} {f['index'][j]:6d} {f['phi_L'][j]:18.12f} {f['stretch'][j]:18.12f} "
                    f"{f['torque'][j]:16.10f} {f['l0'][j]:16.10f} {f['waves_before'][j]:d} -> {f['waves_after'][j]:d}"
@@ -637,6 +666,7 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
     """
     from .drivers.diagram import critical_twists
     rod = _rod(w, EI, GJ, EA, L)
+    _curve(rod, "critical")
     gamma, T = _tension(gamma, rod)
     try:
         crit = critical_twists(rod, T, phi_max=phi_max, phi_min=phi_min, k=k)
@@ -676,6 +706,7 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
                        max_defect, fold_error, forced, uniform, N_max, store_every)
     rod = _rod(w, EI, GJ, EA, L)
+    _curve(rod, "diagram")
     gamma, T = _tension(gamma, rod)
     _check_out(out, [], overwrite)
     with _Interrupts() as intr:
@@ -709,6 +740,15 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     _diagram_folds(dg.folds)
 
 
+def _stable_side(f, j) -> str:
+    ub = f.get("unstable_before", [-1] * (j + 1))[j]
+    ua = f.get("unstable_after", [-1] * (j + 1))[j]
+    if ub < 0 or ua < 0:
+        return ""
+    side = {(True, False): "before", (False, True): "after", (True, True): "both", (False, False): "neither"}
+    return f"  stable: {side[(ub == 0, ua == 0)]} ({ub} | {ua} unstable)"
+
+
 def _diagram_folds(folds):
     if not folds:
         click.echo("no folds")
@@ -716,6 +756,7 @@ def _diagram_folds(folds):
     click.echo(f"{'branch':>6} {'phi_L':>18} {'stretch':>16} {'torque':>14} {'l0':>14} waves")
     for f in folds:
         mark = "  <- +1 wave" if f["waves_after"] > f["waves_before"] else ""
+        mark += _stable_side({k: [v] for k, v in f.items()}, 0)
         click.echo(f"{f['branch']:6d} {f['phi_L']:18.12f} {f['stretch']:16.10f} {f['torque']:14.8f} "
                    f"{f['l0']:14.10f} {f['waves_before']} -> {f['waves_after']}{mark}")
 
@@ -785,9 +826,9 @@ def shape(file, points, branch, output):
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: shapes are written as PNG (name it .png)")
     data = _load(file, branch)
-    model = EulerianRod(data.rod)
+    model = EulerianRod(data.rod, data.curve)
     curves = []
-    S = np.linspace(0, data.rod.L, 400)
+    S = np.linspace(*model.interval, 400)
     for label in points:
         try:
             pt = data.point(label)
@@ -903,6 +944,9 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
                        max_defect, fold_error, forced, uniform, N_max, store_every)
     rod = _rod(w, EI, GJ, EA, L)
+    curve = _curve(rod, "sweep --diagram" if whole else None)
+    if curve is not None:
+        kw["curve"] = curve.spec
     for g in gammas:
         try:
             check_tension(rod, rod.tension(g), f"--gamma {g:g}:")

@@ -34,7 +34,7 @@ def _segments(x, y, unstable):
     """Split a curve where its stability changes: ``[(x, y, stable)]`` (no gaps)."""
     if unstable is None:
         return [(x, y, True)]
-    stable = np.asarray(unstable) == 0
+    stable = np.asarray(unstable) <= 0  # -1: not counted, drawn solid
     out, start = [], 0
     for i in range(1, len(x) + 1):
         if i == len(x) or stable[i] != stable[start]:

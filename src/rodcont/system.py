@@ -45,7 +45,8 @@ class RodSystem:
     """
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
-                 param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None):
+                 param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
+                 curve=None):
         if param not in SYSTEM_PARAMS:
             raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
         if T is None:
@@ -55,7 +56,8 @@ class RodSystem:
         if param == "gamma" and rod.w == 0:
             raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
         self.rod = rod
-        self.model = EulerianRod(rod)
+        self.model = EulerianRod(rod, curve)
+        self.curve = self.model.curve
         self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
         self.base = self.model.params(phi_L, T=T)
         self.param = param
@@ -75,6 +77,7 @@ class RodSystem:
         new = RodSystem.__new__(RodSystem)
         new.__dict__.update(self.__dict__)
         new.disc = self.model.discretise(k=self.disc.k if k is None else k, breakpoints=np.asarray(breakpoints, float))
+        new.model.output_evaluator(new.disc)
         new.base = self.base.copy()
         return new
 
@@ -126,8 +129,20 @@ class RodSystem:
     def interval_defect(self, x, value) -> np.ndarray:
         return self.model.output_evaluator(self.disc).interval_defect(x, self.params(value))
 
+    @property
+    def straight(self) -> bool:
+        """Is the reference curve the straight span (the only one with a straight rod state)?"""
+        return bool(getattr(self.curve, "constant_frame", False))
+
+    def conform(self, breakpoints) -> np.ndarray:
+        """A mesh the reference curve accepts (breakpoints at its stations, if it has any)."""
+        conform = getattr(self.curve, "conform", None)
+        return np.asarray(breakpoints if conform is None else conform(np.asarray(breakpoints, float)), float)
+
     def straight_state(self, phi_L: float) -> np.ndarray:
         """The exact straight state ``Delta = 0``, ``phi = phi_L S / L``, ``F = T K3`` (exact for ``w = 0``)."""
+        if not self.straight:
+            raise ValueError("the straight rod state exists only on the straight reference (--reference straight)")
         L, T = self.rod.L, float(self.base[1])
         zero = lambda S: 0.0 * S  # noqa: E731
         return self.disc.project([zero, zero, lambda S: phi_L * S / L, zero, zero, lambda S: 0.0 * S + T])
@@ -135,7 +150,7 @@ class RodSystem:
     def key(self) -> tuple:
         """What makes two systems the same discrete problem (for caches)."""
         return (tuple(self.base), self.param, self.disc.k, self.disc.breakpoints.tobytes(),
-                tuple(sorted(self.rod.as_dict().items())))
+                tuple(sorted(self.rod.as_dict().items())), getattr(self.curve, "spec", ""))
 
 
 class RodSystem2:
@@ -205,11 +220,13 @@ def point_system(data, i) -> RodSystem:
         T = float(pt["T"])
     elif param == "gamma" and "gamma" in pt:
         T = float(pt["gamma"]) * rod.w * rod.L
-    key = (tuple(sorted(rod.as_dict().items())), float(T), b.tobytes(), int(data.attrs["k"]))
+    spec = str(data.attrs.get("reference", "straight"))
+    key = (tuple(sorted(rod.as_dict().items())), float(T), b.tobytes(), int(data.attrs["k"]), spec)
     if key not in _POINT_SYSTEMS:
         if len(_POINT_SYSTEMS) > 32:
             _POINT_SYSTEMS.clear()
-        _POINT_SYSTEMS[key] = RodSystem(rod, T=T, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b)
+        _POINT_SYSTEMS[key] = RodSystem(rod, T=T, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b,
+                                        curve=data.curve)
     system = _POINT_SYSTEMS[key]
     if data.param == "phi_L" or "phi_L_fixed" not in data.attrs:
         return system

@@ -123,7 +123,7 @@ def _refine(A, B, phi: float, iterations: int = 8) -> float:
 # --------------------------------------------------------------------------
 def shape_signature(system: RodSystem, x: np.ndarray, n: int = 200) -> np.ndarray:
     """``Delta1, Delta2`` and ``phi'`` on ``n`` points of ``[0, L]``: comparable across meshes."""
-    S = np.linspace(0.0, system.rod.L, n)
+    S = np.linspace(*system.model.interval, n)
     d = system.disc
     return np.concatenate([d.evaluate(x, S, 0), d.evaluate(x, S, 1), d.evaluate(x, S, 2, 1) * system.rod.L / 10])
 
@@ -453,7 +453,8 @@ def _write_folds(writer, dg: Diagram) -> None:
         del writer.f["folds"]
     fo = writer.f.create_group("folds")
     folds = dg.folds
-    cols = ("branch", "phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located")
+    cols = ("branch", "phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located",
+            "unstable_before", "unstable_after")
     for name in cols:
         dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
         fo.create_dataset(name, data=np.array([f[name] for f in folds], dtype=dt).reshape(-1))

@@ -62,7 +62,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
     pt = data.point(int(folds["index"][fold]))
     k = int(data.attrs["k"])
     b = pt["breakpoints"]
-    one = RodSystem(data.rod, T=data.tension, N=b.size - 1, k=k, breakpoints=b)
+    one = RodSystem(data.rod, T=data.tension, N=b.size - 1, k=k, breakpoints=b, curve=data.curve)
     two = RodSystem2(one, param)
     q0 = two.value()
     if not lo <= q0 <= hi:
@@ -88,6 +88,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
         meta = dict(kind="fold_curve", gamma=data.gamma, T=data.tension, w=data.rod.w, EI=data.rod.EI,
                     GJ=data.rod.GJ, EA=data.rod.EA, L=data.rod.L, N=int(b.size - 1), k=k, param=param,
                     weight_direction=np.asarray(data.rod.weight_direction), min_alignment_guard=guard,
+                    reference=str(data.attrs.get("reference", "straight")),
                     max_error=max_error, source=f"{data.label}: fold {fold}",
                     settings=json.dumps(dict(range=[lo, hi], ds=ds, ds_max=ds_max, max_steps=max_steps,
                                              forced=list(forced), max_error=max_error)))
@@ -195,7 +196,7 @@ class _FoldSegment:
         self.one.base = self.two.params(phi, pt.p)
         ind = self.one.interval_defect(x, phi)
         b = adapted_mesh(self.one.disc.breakpoints, ind, self.one.disc.k, err, target, N_max=N_max)
-        one = self.one.with_mesh(b)
+        one = self.one.with_mesh(self.one.conform(b))
         two = RodSystem2(one, self.two.param)
         xn = one.disc.transfer(x, self.one.disc)
         vn = one.disc.transfer(np.asarray(self.fp.c, float), self.one.disc)

@@ -57,12 +57,12 @@ class Equilibrium:
         return self.newton.converged
 
     def centreline(self, S=None):
-        S = np.linspace(0, self.system.rod.L, 201) if S is None else S
+        S = np.linspace(*self.system.model.interval, 201) if S is None else S
         return self.system.model.centreline(self.system.disc, self.x, S)
 
 
 def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
-                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None) -> Equilibrium:
+                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None, curve=None) -> Equilibrium:
     """Equilibrium at ``(gamma, phi_L)`` (or tension ``T``) reached by loading ``phi_L`` up from 0 in steps.
 
     A step that fails is halved (down to ``load_step / 1024``).
@@ -89,7 +89,7 @@ def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | No
     if not math.isfinite(T):
         raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
     check_tension(rod, T)
-    sysm = RodSystem(rod, T=T, N=N, k=k)
+    sysm = RodSystem(rod, T=T, N=N, k=k, curve=curve)
     with np.errstate(all="ignore"):
         x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
         r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)

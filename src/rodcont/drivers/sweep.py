@@ -97,7 +97,7 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     if not isinstance(rod, RodParameters):
         raise TypeError(f"rod must be a RodParameters, got {rod!r}")
     from .trace import TraceOptions
-    TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate_at", "store_every")})
+    TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate_at", "store_every", "curve")})
     from ..branchfile import check_output
     os.makedirs(out_dir, exist_ok=True)
     paths = [branch_path(out_dir, g, diagram) for g in gammas]

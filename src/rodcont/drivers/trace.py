@@ -179,6 +179,41 @@ class Accuracy:
         return e
 
 
+class StabilityCount:
+    """The number of unstable modes of each stored point (:func:`rodcont.stability.unstable_modes`).
+
+    The count of divergent modes changes only where the Jacobian at fixed
+    ``phi_L`` is singular: at folds and branch points. It is computed (an
+    eigenproblem, a few ms) at the first point, at every special point, at the
+    first regular point after one, and every ``every`` points as a check;
+    other points carry the last count. ``-1`` where it is not defined (a
+    curved reference curve, or a trace in a parameter other than ``phi_L``).
+    """
+
+    def __init__(self, every: int = 50):
+        self.every = every
+        self.last = None
+        self.fresh = True
+        self.since = 0
+
+    def __call__(self, system: RodSystem, pt: Point) -> int:
+        if not system.straight or system.param != "phi_L":
+            pt.data["unstable_modes"] = -1
+            return -1
+        self.since += 1
+        special = pt.kind not in (Kind.REGULAR,)
+        if self.last is None or self.fresh or special or self.since >= self.every:
+            from ..stability import unstable_modes
+            try:
+                n = int(unstable_modes(system, pt.x, pt.p))
+            except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
+                raise RuntimeError(f"stability count failed at phi_L = {pt.p:.10g}: {exc}") from exc
+            self.last, self.since = n, 0
+            self.fresh = special and pt.kind != Kind.START
+        pt.data["unstable_modes"] = self.last
+        return self.last
+
+
 # --------------------------------------------------------------------------
 # Starts
 # --------------------------------------------------------------------------
@@ -298,6 +333,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
                             lambda q: o.stretch_max - q.data["stretch"], stop=True))
     accuracy = Accuracy(o.max_error)
+    stability = StabilityCount()
     t_start = time.perf_counter()
     seg = _Segment(system, np.asarray(x0, float), float(p0), tangent0, exact)
     segments = 0
@@ -325,7 +361,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     reason = StopReason(Stop.EVENT, f"accuracy guard: no converged solution on a refined mesh "
                                                     f"at p = {pt.p:.10g} ({exc})")
                     break
-                new = old.with_mesh(halved(old.disc.breakpoints))
+                new = old.with_mesh(old.conform(halved(old.disc.breakpoints)))
                 seg = _Segment(new, new.disc.transfer(pt.x, old.disc), pt.p,
                                (new.disc.transfer(pt.tx, old.disc), pt.tp))
                 accuracy.reset()
@@ -353,6 +389,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 why = tracker._check_start(first)
                 if why is not None:
                     raise TraceError(f"cannot start there: {why.message}")
+                stability(sysm, first)
                 recorder.add(first, sysm.disc.breakpoints)
                 last_recorded = (first, sysm)
                 if callback is not None:
@@ -387,6 +424,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                                                        f" (N_max = {o.N_max} reached)")
                                                     + (" (refining the mesh did not help)" if remeshes_here >= 4 else ""))
                     break
+                stability(sysm, pt)
                 recorder.add(pt, sysm.disc.breakpoints)
                 last_recorded = (pt, sysm)
                 remeshes_here = 0
@@ -427,7 +465,7 @@ def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: Trace
     b = adapted_mesh(sysm.disc.breakpoints, indicator, sysm.disc.k, max(err, at_least),
                      target if target is not None else accuracy.trigger / 10,
                      N_max=o.N_max)
-    new = sysm.with_mesh(b)
+    new = sysm.with_mesh(sysm.conform(b))
     x = new.disc.transfer(pt.x, sysm.disc)
     tx = new.disc.transfer(pt.tx, sysm.disc)
     accuracy.reset()
@@ -438,7 +476,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
           T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
           start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
           breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
-          store_every: int = 1, callback: Callable[[Point], None] | None = None,
+          store_every: int = 1, curve=None, callback: Callable[[Point], None] | None = None,
           settings: ContinuationSettings | None = None, **options) -> Branch:
     """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
 
@@ -448,7 +486,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     ``from_straight = PHI`` (:func:`straight_seed`). ``param`` other than
     ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
     ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
-    along the other branch. ``store_every``: keep the solution (coefficients,
+    along the other branch. ``curve``: the reference curve
+    (:mod:`rodcont.curves`; default the straight span ``L e1``). ``store_every``: keep the solution (coefficients,
     tangent) of every ``store_every``-th point only, and of every special point
     and the last one (smaller files; the table keeps every point).
     ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
@@ -486,15 +525,24 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     if switch and start is None:
         raise ValueError("switch needs a start point (a branch point) with its incoming direction")
     tangent0, exact = None, False
+    if curve is not None and not isinstance(curve, str):
+        from ..curves import ReferenceCurve
+        if not isinstance(curve, ReferenceCurve):
+            raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {curve!r}")
+    if isinstance(curve, str):
+        from ..curves import parse_reference
+        curve = parse_reference(curve, rod.L)
     if from_straight is not None:
         phi0 = check_number("from_straight", from_straight)
+        if curve is not None and not getattr(curve, "constant_frame", False):
+            raise ValueError("--from-straight needs the straight reference (the straight rod state lives there)")
         sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints)
         system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints)
         p0 = phi0 if param == "phi_L" else system.value()
     elif start is not None:
         x0, p0, t0 = start
         system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
-                           breakpoints=breakpoints)
+                           breakpoints=breakpoints, curve=curve)
         x0 = np.asarray(x0, float)
         if x0.size != system.disc.size:
             raise ValueError("the start point does not fit this mesh (N, k)")
@@ -511,7 +559,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     else:
         if param != "phi_L":
             raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
-        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints)
+        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve)
         x0 = system.model.initial_guess(system.disc, system.base[1])
         p0 = 0.0
     branch = Branch(gamma=rod.gamma(T) if rod.w > 0 else math.nan, rod=rod, N=N, k=k, param=param)
@@ -547,6 +595,7 @@ def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: Tr
                 GJ=rod.GJ, EA=rod.EA, L=rod.L, N=int(N), k=int(k), param=param,
                 weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=opts.min_alignment,
                 max_error=opts.max_error, phi_L_fixed=float(system.base[0]) if param != "phi_L" else math.nan,
+                reference=str(getattr(system.curve, "spec", "straight") or "straight"),
                 settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float))
     if rod.w == 0:
         meta["gamma"] = math.nan
