@@ -308,7 +308,12 @@ class ValueDetector(Detector):
             crossed = (base.p - v) * (new.p - v) < 0 or (self.stop and new.p == v and base.p != v)
             if not crossed:
                 continue
-            f = tracker.locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v, 1e-13 * (1 + abs(v)), self.kind)
+            # the point at p = v directly: Newton at fixed p from the chord between base and new (two or
+            # three iterations where the branch is regular in p); the secant along the arc otherwise
+            f = tracker.solve_at_value(base, new, ds, v, self.kind)
+            if f is None:
+                f = tracker.locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v, 1e-13 * (1 + abs(v)),
+                                   self.kind)
             if f is None:
                 continue
             if abs(f.p - v) < 1e-12 * (1 + abs(v)):
@@ -688,6 +693,24 @@ class Tracker:
         if best is not None:
             best.located = False
         return best
+
+    def solve_at_value(self, base: Point, new: Point, ds: float, v: float, kind) -> Point | None:
+        """The branch point with parameter exactly ``v`` between ``base`` and ``new`` (Newton at fixed ``p``),
+        or None if Newton there does not converge (near a fold)."""
+        theta = (v - base.p) / (new.p - base.p) if new.p != base.p else 0.5
+        x0 = base.x + theta * (new.x - base.x)
+        r = newton_solve(lambda x: self._linearise(x, v)[:2], lambda x: self.problem.residual(x, v), x0,
+                         tol=self.settings.newton_tol, max_iter=6)
+        self.newton_iterations += r.iterations
+        if not r.converged:
+            return None
+        step = self._wnorm(np.append(new.x - base.x, new.p - base.p))
+        if self._wnorm(np.append(r.x - x0, 0.0)) > 0.5 * step:
+            return None  # Newton went elsewhere: not the point between these two
+        pt = self._make_point(r.x, v, base, theta * ds, r.iterations, kind=kind)
+        if pt is None or self._wdot(pt, base) <= 0:
+            return None
+        return pt
 
     def _guards_at_found(self, base: Point, found: list[Finding]) -> list[Finding]:
         """A stopping event can be crossed between the base and a located point even when it is not
