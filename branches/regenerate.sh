@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Regenerate the regression family (paper values, N = 30 moving breakpoints, k = 5) and its response diagram.
+# Regenerate the regression data: the whole response diagram (every branch, every fold up to Phi = 40)
+# for each Gamma of the paper's Figure 2, paper values, adaptive mesh from N = 15, k = 5; the solution
+# is kept at every 20th point and at every special point (the table keeps every point). Then the figure.
 set -euo pipefail
 cd "$(dirname "$0")"
-for g in 0 0.5 1 2 5 10; do
-  rodcont trace --gamma "$g" --N 30 --adapt --out "gamma_$g.h5" --quiet > "/dev/null" &
-done
-wait
-rodcont plot gamma_*.h5 -o response_diagram.png --title "Twisted heavy clamped rod (paper values, N = 30 adaptive, k = 5)"
+rm -f gamma_*.h5
+rodcont sweep --gamma 0 0.5 1 2 5 10 --diagram --phi-max 40 --store-every 20 --out . --overwrite --quiet
+rodcont plot diagram_0.h5 diagram_0.5.h5 diagram_1.h5 diagram_2.h5 diagram_5.h5 diagram_10.h5 \
+    -o response_diagram.png --title "Twisted heavy clamped rod: every branch up to Phi = 40 (paper values)"

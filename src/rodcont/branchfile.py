@@ -209,7 +209,8 @@ class _Group:
         g = self.g
         if name not in g:
             g.create_dataset(name, (self.n, width), maxshape=(None, None), dtype=dtype, fillvalue=np.nan,
-                             chunks=(16, max(min(width, 4096), 1)), compression="gzip", shuffle=True)
+                             chunks=(16, max(min(width, 4096), 1)), compression="gzip", compression_opts=6,
+                             shuffle=True)
         ds = g[name]
         if ds.shape[1] < width:
             ds.resize(width, axis=1)
@@ -226,13 +227,18 @@ class _Group:
             ds = g[name]
             ds.resize(i + 1, axis=0)
             ds[i] = val
-        store = self.store_every <= 1 or i % self.store_every == 0 or str(kind) != "regular"
+        # a thinned file keeps the solutions of its folds, branch points, starts and ends (events)
+        special = str(kind) not in ("regular", "forced")
+        store = self.store_every <= 1 or i % self.store_every == 0 or special
         for name, vec, dtype in (("coefficients", x, "f8"), ("tangent", tangent, "f4"),
                                  ("breakpoints", breakpoints, "f8")):
             vec = np.asarray(vec)
             ds = self._matrix(name, vec.size, dtype)
             ds.resize(i + 1, axis=0)
-            if store or name == "breakpoints":
+            # a thinned file keeps tangents at its special points only (a restart elsewhere
+            # starts along the parameter)
+            keep = name == "breakpoints" or (store and (name != "tangent" or special or self.store_every <= 1))
+            if keep:
                 ds[i, :vec.size] = vec
         self._pending = None if store else (i, np.asarray(x), np.asarray(tangent))
         self.n += 1
@@ -309,8 +315,6 @@ class BranchWriter:
         if self.points == 0 or self.closed:
             return
         t = time.monotonic()
-        for grp in self.groups.values():
-            grp.fill_pending()
         self.f.flush()
         publish(self.path, self.f.id.get_file_image())
         self.published = self.points
@@ -333,6 +337,8 @@ class BranchWriter:
         try:
             if stop_reason is not None:
                 self.f.attrs["stop_reason"] = stop_reason
+            for grp in self.groups.values():
+                grp.fill_pending()  # a finished (or interrupted) file ends on a restartable point
             self.flush()
         finally:
             # whatever happened (a full disk), the memory file is dropped and the lock released:
