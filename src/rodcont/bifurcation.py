@@ -119,7 +119,7 @@ def bifurcating_direction(J, Fp, tx, tp, wx: float, wp: float, iterations: int =
     inverse iteration, orthogonalised against ``t0`` in the arclength inner
     product ``wx x.y + wp p q`` and normalised in it.
     """
-    A = bordered(J, np.asarray(Fp, float), wx * np.asarray(tx), wp * float(tp))
+    A = bordered(J, np.asarray(Fp, float), np.asarray(wx, float) * np.asarray(tx), wp * float(tp))
     lu = LU(A)
     n = tx.size
     rng = np.random.default_rng(7)
@@ -128,7 +128,7 @@ def bifurcating_direction(J, Fp, tx, tp, wx: float, wp: float, iterations: int =
         y = lu.solve(y)
         y /= np.linalg.norm(y)
     t0 = np.append(tx, tp)
-    W = np.append(np.full(n, wx), wp)
+    W = np.append(np.broadcast_to(np.asarray(wx, float), (n,)), wp)
     y = y - (W * y @ t0) / (W * t0 @ t0) * t0
     y /= math.sqrt(W * y @ y)
     return y[:-1], float(y[-1])

@@ -368,8 +368,15 @@ class Tracker:
         self.events = list(events)
         self.stop: StopReason | None = None
         self.n = np.asarray(x0).size
-        self.wx = s.theta / self.n
-        self.wp = 1.0 - s.theta
+        # The arclength weights: theta / n on the unknowns, 1 - theta on the parameter, each divided
+        # by the square of the problem's own scale of it (``arclength_scale() -> (sx, sp)``, optional),
+        # so that a step means the same in any units.
+        scale = getattr(problem, "arclength_scale", None)
+        sx, sp = scale() if scale is not None else (1.0, 1.0)
+        self.wx = s.theta / self.n / np.asarray(sx, float) ** 2
+        if np.ndim(self.wx) == 0:
+            self.wx = float(self.wx)
+        self.wp = (1.0 - s.theta) / float(sp) ** 2
         self._x0, self._p0, self._t0 = np.asarray(x0, float), float(p0), tangent0
         self.steps = 0
         self.newton_iterations = 0
@@ -403,10 +410,10 @@ class Tracker:
 
     def _wnorm(self, v) -> float:
         """Arclength norm of a vector ``(dx, dp)``."""
-        return math.sqrt(self.wx * float(v[:-1] @ v[:-1]) + self.wp * float(v[-1]) ** 2)
+        return math.sqrt(float((self.wx * v[:-1]) @ v[:-1]) + self.wp * float(v[-1]) ** 2)
 
     def _wdot(self, a: Point, b: Point) -> float:
-        return self.wx * float(a.tx @ b.tx) + self.wp * a.tp * b.tp
+        return float((self.wx * a.tx) @ b.tx) + self.wp * a.tp * b.tp
 
     # ---- linear algebra on the problem -----------------------------------
     def _linearise(self, x, p):
@@ -442,7 +449,7 @@ class Tracker:
         t = lu.solve(rhs)
         dy = None if arc_residual is None else lu.solve(-np.append(F, arc_residual))
         tx, tp = t[:-1], float(t[-1])
-        norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
+        norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)
         sign, log = lu.det()
         tx, tp = tx / norm, tp / norm
         solver = lu.with_last_row(row, self._border(tx, tp), t)
@@ -471,7 +478,7 @@ class Tracker:
     def _augmented_residual(self, y, base: Point, ds: float):
         x, p = y[:-1], y[-1]
         F = self.problem.residual(x, p)
-        g = self.wx * float(base.tx @ (x - base.x)) + self.wp * base.tp * (p - base.p) - ds
+        g = float((self.wx * base.tx) @ (x - base.x)) + self.wp * base.tp * (p - base.p) - ds
         return np.append(F, g)
 
     def _correct(self, base: Point, ds: float, kind=Kind.REGULAR, max_iter: int | None = None):
@@ -569,7 +576,7 @@ class Tracker:
             if size <= accept * (1 + max_norm(y)) or (stalled and rounding):
                 t = lu.solve(e)
                 tx, tp = t[:-1], float(t[-1])
-                norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
+                norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)
                 if not (math.isfinite(norm) and norm > 0):
                     return None, "the tangent system is singular"
                 tx, tp = tx / norm, tp / norm
@@ -598,7 +605,7 @@ class Tracker:
         s = self.settings
         if self.exact_start:
             tx, tp = np.asarray(self._t0[0], float), float(self._t0[1])
-            norm = math.sqrt(self.wx * tx @ tx + self.wp * tp * tp)
+            norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)
             pt = Point(x=self._x0.copy(), p=self._p0, tx=tx / norm, tp=tp / norm, kind=Kind.START)
             if self.monitor is not None:
                 pt.data = dict(self.monitor(pt.x, pt.p))
@@ -613,7 +620,7 @@ class Tracker:
             ok, message = r.converged, r.message
         else:
             tx_ref, tp_ref = np.asarray(self._t0[0], float), float(self._t0[1])
-            norm = math.sqrt(self.wx * tx_ref @ tx_ref + self.wp * tp_ref * tp_ref)
+            norm = math.sqrt(float((self.wx * tx_ref) @ tx_ref) + self.wp * tp_ref * tp_ref)
             if not norm > 0 or not math.isfinite(norm):
                 raise StopContinuation("the restart direction is zero")
             tx_ref, tp_ref = tx_ref / norm, tp_ref / norm
@@ -751,7 +758,7 @@ class Tracker:
         cos_t = self._wdot(new, base)
         sec = np.append(new.x - base.x, new.p - base.p)
         sec_norm = self._wnorm(sec)
-        cos_s = (self.wx * float(base.tx @ sec[:-1]) + self.wp * base.tp * sec[-1]) / sec_norm if sec_norm > 0 else 1.0
+        cos_s = (float((self.wx * base.tx) @ sec[:-1]) + self.wp * base.tp * sec[-1]) / sec_norm if sec_norm > 0 else 1.0
         if min(cos_t, cos_s) < math.cos(s.max_angle):
             return None, "the tangent turns too fast"
         if s.detect_folds and s.detect_fold_pairs and FoldDetector.hidden_pair(base, new, ds, s.fold_tol):

@@ -113,6 +113,20 @@ class RodSystem:
             out[self.param] = float(value)
         return out
 
+    def arclength_scale(self):
+        """Scales of the unknowns and of the parameter in the tracker's arclength, so that a step means
+        the same in any units: the deflections by ``L``, the twist by one radian, the forces by
+        ``max(|T|, w L, EI / L^2)``; the parameter by its own size (one radian for ``phi_L``)."""
+        rod = self.rod
+        T = float(self.base[1])
+        fs = max(abs(T), rod.w * rod.L, rod.EI / rod.L**2)
+        sx = np.empty(self.disc.size)
+        for i, s in enumerate((rod.L, rod.L, 1.0, fs, fs, fs)):
+            sx[self.disc.index[i]] = s
+        sp = {"phi_L": 1.0, "T": fs, "gamma": max(abs(self.value()), 1.0), "w": max(rod.w, rod.EI / rod.L**3),
+              "EI": rod.EI, "GJ": rod.GJ, "EA": rod.EA}[self.param]
+        return sx, sp
+
     def relative_change(self, x0, x1) -> float:
         """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size (B-spline
         coefficients, max norm; sizes below 1e-12 L count as 1e-12 L). A deflection that doubles

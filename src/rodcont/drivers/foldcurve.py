@@ -103,7 +103,11 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
             s = ContinuationSettings(ds=ds, ds_min=min(1e-7, ds), ds_max=ds_max, direction=direction, p_min=lo,
                                      p_max=hi, max_steps=max_steps, detect_folds=True, detect_branch_points=False,
                                      forced=forced, max_angle=0.3)
-            seg = _FoldSegment(one, two, fp, estimator, X0, q0, None)
+            # each direction from a fresh fold problem: the other direction moved its borders and mesh
+            one_d = one.with_mesh(one.disc.breakpoints)
+            two_d = RodSystem2(one_d, param)
+            seg = _FoldSegment(one_d, two_d, FoldProblem(two_d, x0, phi0, q0, v0), ErrorEstimator(one_d), X0, q0,
+                               None)
             pts, reason, remeshes = [], "", 0
             while True:
                 tr = Tracker(seg.fp, seg.X, seg.q, s, monitor=seg.monitor, events=events, tangent0=seg.tangent)

@@ -253,8 +253,9 @@ def switch_direction(sysm: RodSystem, x: np.ndarray, value: float, direction: tu
     from ..bifurcation import bifurcating_direction
     _, J, Fp = sysm.linearise(x, value)
     n = x.size
+    sx, sp = sysm.arclength_scale()
     tx, tp = bifurcating_direction(J, Fp, np.asarray(direction[0], float), float(direction[1]),
-                                   theta / n, 1.0 - theta)
+                                   theta / n / sx**2, (1.0 - theta) / sp**2)
     return tx, tp
 
 
