@@ -136,29 +136,51 @@ def same_solution(a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> bool:
 # Deflation
 # --------------------------------------------------------------------------
 def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesses: Sequence[np.ndarray],
-            power: float = 2.0, shift: float = 1.0, tol: float = 1e-10, max_iter: int = 60,
+            power: float = 2.0, shift: float = 1.0, tol: float = 1e-10, max_iter: int = 80,
             max_new: int = 10) -> list[np.ndarray]:
     """Further solutions of ``F(x, phi_L) = 0`` on ``system``'s mesh, none of them in ``known``.
 
     Deflated Newton (Farrell, Birkisson & Funke, SIAM J. Sci. Comput. 37, 2015):
-    Newton on ``G(x) = M(x) F(x)``, ``M(x) = prod_i (1 / |x - r_i|^power + shift)``,
-    whose Jacobian is ``M (J + F g^T)`` with ``g = grad log M``: the step is
-    ``-J^{-1} F / (1 + g . J^{-1} F)`` (one LU per iteration, as Newton's).
-    Each guess is tried against every known root and every root found so far;
-    the new roots (converged with plain Newton at the end) are returned.
+    Newton on ``G(x) = M(x) F(x)``, ``M(x) = prod_i (1 / |x - r_i|^power + shift)``
+    (``|.|`` the root-mean-square of the unknowns in the problem's own scales,
+    ``arclength_scale``), whose Jacobian is ``M (J + F g^T)`` with
+    ``g = grad log M``: the step is ``-J^{-1} F / (1 + g . J^{-1} F)`` (one LU
+    per iteration, as Newton's), damped by halving while ``|G|`` does not
+    fall. Each guess is tried against every known root and every root found
+    so far; the new roots (converged with plain Newton at the end) are returned.
     """
     roots = [np.asarray(r, float) for r in known]
     found: list[np.ndarray] = []
     p = system.params(phi_L) if system.param == "phi_L" else system.base
     n = system.disc.size
+    scale = getattr(system, "arclength_scale", None)
+    sx = np.asarray(scale()[0], float) if scale is not None else np.ones(n)
+    w = 1.0 / (n * sx**2)
     rng = np.random.default_rng(2015)
+
+    def log_m_and_grad(x):
+        logm, g = 0.0, np.zeros(n)
+        for r in roots:
+            d = x - r
+            nd2 = max(float((w * d) @ d), 1e-300)
+            m = nd2 ** (-power / 2) + shift
+            logm += math.log(m)
+            g += -power * nd2 ** (-power / 2 - 1) * (w * d) / m
+        return logm, g
+
+    def merit(x):
+        F = system.disc.residual(x, p)
+        if not np.all(np.isfinite(F)):
+            return math.inf
+        return math.log(max(float(np.linalg.norm(F)), 1e-300)) + log_m_and_grad(x)[0]
+
     for guess in guesses:
         if len(found) >= max_new:
             break
         x = np.asarray(guess, float).copy()
         # a guess on a known root is where deflation is infinite: start beside it
         if any(max_norm(x - r) <= 1e-8 * (1 + max_norm(r)) for r in roots):
-            x = x * (1 + 1e-2 * rng.standard_normal(n))
+            x = x + 1e-2 * sx * rng.standard_normal(n)
         ok = False
         for _ in range(max_iter):
             F, J, _ = system.disc.linearise(x, p)
@@ -168,21 +190,20 @@ def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesse
                 dx0 = LU(J).solve(-F)
             except SingularMatrix:
                 break
-            g = np.zeros(n)
-            for r in roots:
-                d = x - r
-                nd2 = max(float(d @ d) / n, 1e-300)
-                m = nd2 ** (-power / 2) + shift
-                # d/dx log(|d|^-p + shift) = -p |d|^(-p-2) d / n / (|d|^-p + shift)
-                g += -power * nd2 ** (-power / 2 - 1) * d / n / m
+            _, g = log_m_and_grad(x)
             denom = 1.0 - float(g @ dx0)  # 1 + g . J^{-1} F with J^{-1} F = -dx0
             if not math.isfinite(denom) or abs(denom) < 1e-14:
                 break
             dx = dx0 / denom
-            x = x + dx
             if max_norm(dx0) <= tol * (1 + max_norm(x)):
                 ok = True
                 break
+            m0, lam = merit(x), 1.0
+            while lam >= 1.0 / 64 and not merit(x + lam * dx) < m0:
+                lam *= 0.5
+            if lam < 1.0 / 64:
+                break
+            x = x + lam * dx
         if not ok:
             continue
         r = system.disc.newton(x, p, tol=tol)
@@ -462,7 +483,10 @@ def _write_folds(writer, dg: Diagram) -> None:
 
 
 def _deflated_starts(dg: Diagram, rod, T, phi: float, N: int, k: int, opts: TraceOptions):
-    """New solutions at ``phi`` by deflation from the known ones (on a uniform mesh of max(2N, 30))."""
+    """New solutions at ``phi`` by deflation from the known ones (on a uniform mesh of max(2N, 30)).
+
+    Guesses: the known solutions (started beside), the straight twisted state, the untwisted
+    sag, and helical shapes of 1 to 4 waves of amplitude 0.05 L and 0.15 L."""
     Nd = max(2 * N, 30)
     system = RodSystem(rod, T=T, N=Nd, k=k)
     known = []
@@ -475,6 +499,14 @@ def _deflated_starts(dg: Diagram, rod, T, phi: float, N: int, k: int, opts: Trac
     guesses = list(known)
     guesses.append(system.straight_state(phi))
     guesses.append(system.model.initial_guess(system.disc, T))
+    # helical shapes of 1 to 4 waves, small and moderate, on the straight twisted state
+    L = rod.L
+    for waves in (1, 2, 3, 4):
+        for amp in (0.05 * L, 0.15 * L):
+            shape = [lambda S, n=waves, a=amp: a * np.sin(np.pi * S / L) ** 2 * np.cos(2 * np.pi * n * S / L),
+                     lambda S, n=waves, a=amp: a * np.sin(np.pi * S / L) ** 2 * np.sin(2 * np.pi * n * S / L),
+                     lambda S: phi * S / L, lambda S: 0 * S, lambda S: 0 * S, lambda S: 0 * S + T]
+            guesses.append(system.disc.project(shape))
     with np.errstate(all="ignore"):
         found = deflate(system, phi, known, guesses)
     out = []
