@@ -82,6 +82,31 @@ def same_file(a: str, b: str) -> bool:
     return os.path.realpath(a) == os.path.realpath(b)
 
 
+def side_file(path: str, kind: str) -> str:
+    """A hidden file beside the (resolved) target for ``kind`` (``lock``, ``tmp``): a short name
+    (a hash of the target's), so a target name of any allowed length has one."""
+    real = os.path.realpath(path)
+    tag = hashlib.blake2b(os.path.basename(real).encode("utf-8", "surrogateescape"), digest_size=8).hexdigest()
+    extra = f".{os.getpid()}" if kind == "tmp" else ""
+    return os.path.join(os.path.dirname(real), f".rodcont-{tag}{extra}.{kind}")
+
+
+def check_regular_target(path: str, what: str = "--out") -> None:
+    """Refuse an output that exists (through any link) and is not a regular file: a device, a FIFO,
+    a socket, a directory (rodcont writes a new file and renames it over the target: a device
+    node would be replaced)."""
+    if path.endswith(os.sep):
+        raise BranchFileError(f"cannot write {path}: a directory name (it ends with {os.sep})")
+    if len(os.path.basename(path).encode("utf-8", "surrogateescape")) > 255:
+        raise BranchFileError(f"cannot write {path}: file name too long")
+    if os.path.lexists(path):
+        real = os.path.realpath(path)
+        if os.path.isdir(real):
+            raise BranchFileError(f"cannot write {path}: it is a directory")
+        if os.path.exists(real) and not os.path.isfile(real):
+            raise BranchFileError(f"cannot write {path}: not a regular file (a device, a pipe, a socket)")
+
+
 def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--out") -> str:
     """Validate an output path before any work: not an input, its directory exists and is
     writable, an existing file only with ``overwrite``. Returns the path; raises ``BranchFileError``."""
@@ -90,6 +115,7 @@ def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--o
     for src in inputs:
         if src is not None and same_file(path, src):
             raise BranchFileError(f"{what} {path} is the input file {src}: write to another file")
+    check_regular_target(path, what)
     d = os.path.dirname(os.path.abspath(path)) or "."
     if not os.path.isdir(d):
         raise BranchFileError(f"cannot write {path}: directory {d} does not exist")
@@ -109,8 +135,7 @@ class OutputLock:
 
     def __init__(self, path: str):
         import fcntl
-        real = os.path.realpath(path)
-        self.lock_path = os.path.join(os.path.dirname(real), "." + os.path.basename(real) + ".lock")
+        self.lock_path = side_file(path, "lock")
         try:
             self.fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
@@ -143,7 +168,7 @@ def publish(path: str, image: bytes) -> None:
     """Write ``header + image`` to a temporary file beside ``path``, sync it, rename it over ``path``."""
     real = os.path.realpath(path)
     d = os.path.dirname(real)
-    tmp = os.path.join(d, f".{os.path.basename(real)}.{os.getpid()}.tmp")
+    tmp = side_file(path, "tmp")
     data = _header(image) + image
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
@@ -277,10 +302,12 @@ class BranchWriter:
     point: a run that finds none leaves the target as it was.
     """
 
-    def __init__(self, path: str, meta: dict, interval: float = 1.0, lock: bool = True, store_every: int = 1):
+    def __init__(self, path: str, meta: dict, interval: float = 1.0, lock: bool = True, store_every: int = 1,
+                 min_points: int = 1):
         h5py = _h5py()
         self.path = path
         self.store_every = int(store_every)
+        self.min_points = int(min_points)  # publish nothing before this many points (a lone start is no result)
         self.lock = OutputLock(path) if lock else None
         self.f = h5py.File(f"rodcont-{id(self)}-{time.monotonic_ns()}", "w", driver="core", backing_store=False)
         self.f.attrs["rodcont_version"] = __version__
@@ -312,7 +339,7 @@ class BranchWriter:
 
     def flush(self) -> None:
         """Publish the file as it is now (only once it holds a point)."""
-        if self.points == 0 or self.closed:
+        if self.points < max(self.min_points, 1) or self.closed:
             return
         t = time.monotonic()
         self.f.flush()
@@ -550,8 +577,18 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
     wd = np.asarray(attrs.get("weight_direction", (0.0, 0.0, -1.0)))
     if wd.shape != (3,) or not np.all(np.isfinite(wd.astype(float))) or not np.any(wd != 0):
         raise BranchFileError(f"{path}: damaged branch file (weight_direction)")
-    if "T" in attrs and not (isinstance(attrs["T"], (int, float)) and math.isfinite(attrs["T"])):
+    if "T" in attrs and not (isinstance(attrs["T"], (int, float)) and not isinstance(attrs["T"], bool)
+                             and math.isfinite(attrs["T"])):
         raise BranchFileError(f"{path}: damaged branch file (attribute T)")
+    from .rod import RodParameters
+    try:  # the rod the file describes must be one rodcont computes with
+        RodParameters(EI=attrs["EI"], GJ=attrs["GJ"], EA=attrs["EA"], w=attrs["w"], L=attrs["L"],
+                      weight_direction=tuple(float(u) for u in wd))
+    except (ValueError, TypeError) as exc:
+        raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
+    param = attrs.get("param", "phi_L")
+    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA"):
+        raise BranchFileError(f"{path}: damaged branch file (param = {param!r})")
     return attrs
 
 
@@ -568,6 +605,13 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
     for req in ("phi_L", "stretch", "torque", "l0", "coefficients", "kind"):
         if req not in branch:
             raise BranchFileError(f"{where}: damaged branch file (/branch/{req} missing)")
+    for key in ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "arclength", "defect",
+                "error", "dphi_ds", "located", "unstable_modes"):
+        if key in branch and (np.asarray(branch[key]).ndim != 1 or np.asarray(branch[key]).dtype.kind not in "fiub"):
+            raise BranchFileError(f"{where}: damaged branch file (/branch/{key} is not a column of numbers)")
+    param = attrs.get("param", "phi_L")
+    if param != "phi_L" and param not in branch:
+        raise BranchFileError(f"{where}: damaged branch file (/branch/{param} missing)")
     n = min(len(v) for v in branch.values())
     branch = {k: v[:n] for k, v in branch.items()}
     if np.asarray(branch["kind"]).dtype.kind not in "OSU":
@@ -594,7 +638,19 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
             if not isinstance(root[group], h5py.Group):
                 raise BranchFileError(f"{where}: damaged branch file (/{group} is not a group)")
             for key, obj in root[group].items():
+                if not isinstance(obj, h5py.Dataset):
+                    raise BranchFileError(f"{where}: damaged branch file (/{group}/{key} is not a dataset)")
                 target[key] = np.asarray(obj[()])
+            need = FOLD_FIELDS[:7] if group == "folds" else ("index", "phi_L", "stretch")
+            if target:
+                lengths = set()
+                for key in need:
+                    v = target.get(key)
+                    if v is None or v.ndim != 1 or v.dtype.kind not in "fiu":
+                        raise BranchFileError(f"{where}: damaged branch file (/{group}/{key} missing or not numbers)")
+                    lengths.add(len(v))
+                if len(lengths) > 1:
+                    raise BranchFileError(f"{where}: damaged branch file (/{group} columns of different lengths)")
             idx = np.asarray(target.get("index", np.zeros(0, int)))
             if idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= n):
                 raise BranchFileError(f"{where}: damaged branch file (/{group}/index out of range)")
@@ -622,7 +678,8 @@ def _root_attrs(path: str, f) -> dict:
     return _validate_attrs(path, attrs)
 
 
-_READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDecodeError, AttributeError)
+_READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDecodeError, AttributeError,
+                RuntimeError, OverflowError)
 
 
 def load_branch(path: str, branch: str | int | None = None) -> BranchData:
@@ -659,8 +716,16 @@ def load_diagram(path: str) -> DiagramData:
             if "branches" not in f:
                 return DiagramData(path, attrs, [_read_group(path, f, attrs)], {})
             names = sorted(f["branches"].keys(), key=lambda s: (len(s), s))
+            if not names:
+                raise BranchFileError(f"{path}: a diagram file with no branch")
             branches = [_read_group(path, f["branches"][nm], attrs, nm) for nm in names]
             folds = {k: np.asarray(v[()]) for k, v in f["folds"].items()} if "folds" in f else {}
+            if folds:
+                cols = FOLD_FIELDS[:7] + ("branch",)
+                if any(c not in folds or folds[c].ndim != 1 or folds[c].dtype.kind not in "fiu" for c in cols) or \
+                        len({len(folds[c]) for c in cols}) > 1 or \
+                        (len(folds["branch"]) and (folds["branch"].min() < 0 or folds["branch"].max() >= len(names))):
+                    raise BranchFileError(f"{path}: damaged diagram file (/folds)")
             return DiagramData(path, attrs, branches, folds)
     except BranchFileError:
         raise

@@ -56,14 +56,20 @@ def _load_config(ctx, param, value):
     if value is None:
         return None
     import tomllib
+    if not os.path.isfile(value):
+        raise click.BadParameter(f"{value} is not a file", param_hint="--config")
+    if os.path.getsize(value) > 1_000_000:
+        raise click.BadParameter(f"{value} is larger than a problem file (1 MB)", param_hint="--config")
     try:
         with open(value, "rb") as fh:
             doc = tomllib.load(fh)
     except OSError as exc:
         raise click.BadParameter(f"cannot read {value}: {exc.strerror}", param_hint="--config") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise click.BadParameter(f"{value} is not valid TOML ({exc})", param_hint="--config") from None
-    names = {p.name for p in ctx.command.params}
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
+        raise click.BadParameter(f"{value} is not valid TOML ({' '.join(str(exc).split())[:120]})",
+                                 param_hint="--config") from None
+    params = {p.name: p for p in ctx.command.params}
+    names = set(params)
     defaults = {}
     for section, table in doc.items():
         if not isinstance(table, dict):
@@ -78,11 +84,43 @@ def _load_config(ctx, param, value):
                 raise click.BadParameter(f"{value}: [{section}] {key} is not an option of this command",
                                          param_hint="--config")
             if name == "weight_direction" and isinstance(v, list):
+                if len(v) != 3 or not all(isinstance(u, (int, float)) and not isinstance(u, bool) for u in v):
+                    raise click.BadParameter(f"{value}: [{section}] {key} must be three numbers",
+                                             param_hint="--config")
                 v = ",".join(str(u) for u in v)
+            _check_config_value(value, section, key, v, params[name])
             defaults[name] = v
     ctx.default_map = dict(ctx.default_map or {}, **defaults)
     ctx.meta["rodcont.config_file"] = value
     return value
+
+
+def _check_config_value(path, section, key, v, param):
+    """A config value of the option's kind: numbers for numbers (integers for counts), strings for
+    text, true/false for switches, lists for repeatable options; no dates, tables or booleans as numbers."""
+    def bad(what):
+        raise click.BadParameter(f"{path}: [{section}] {key} must be {what}, got {v!r}", param_hint="--config")
+
+    def number(u, integer=False):
+        if isinstance(u, bool) or not isinstance(u, (int, float)):
+            return False
+        return not integer or isinstance(u, int)
+
+    if getattr(param, "is_flag", False):
+        if not isinstance(v, bool):
+            bad("true or false")
+        return
+    t = param.type
+    integer = isinstance(t, click.types.IntParamType)
+    numeric = integer or isinstance(t, click.types.FloatParamType)
+    if getattr(param, "multiple", False) or (param.nargs or 1) != 1:
+        if not isinstance(v, list) or not all(number(u, integer) if numeric else isinstance(u, str) for u in v):
+            bad("a list of " + ("integers" if integer else "numbers" if numeric else "strings"))
+        return
+    if numeric and not number(v, integer):
+        bad("an integer" if integer else "a number")
+    if not numeric and not isinstance(v, str):
+        bad("a string")
 
 
 def _weight_direction(ctx, param, value):
@@ -122,7 +160,7 @@ def rod_options(f):
                      help="TOML file holding the problem ([rod], [loads], [mesh], [trace]); options override it"),
         click.option("--T", "T", type=float, default=None, callback=_number("--T"),
                      help="the tension itself (instead of --gamma; also with --w 0)"),
-        click.option("--N", "N", type=click.IntRange(1, 100000), default=15, show_default=True,
+        click.option("--N", "N", type=click.IntRange(1, 20000), default=15, show_default=True,
                      help="number of subintervals of the (first) mesh"),
         click.option("--k", "k", type=click.IntRange(1, 7), default=5, show_default=True,
                      help="Gauss collocation points per subinterval"),
@@ -220,7 +258,7 @@ def trace_options(f):
         click.option("--forced", type=float, multiple=True, callback=_number("--forced"),
                      help="a Phi value that gets a point of its own (repeatable)"),
         click.option("--uniform", is_flag=True, help="keep the first mesh (no adaptation)"),
-        click.option("--N-max", "N_max", type=click.IntRange(1, 100000), default=400, show_default=True,
+        click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=400, show_default=True,
                      help="largest number of subintervals the adaptive mesh may use"),
         click.option("--store-every", type=click.IntRange(1, 10**6), default=1, show_default=True,
                      help="keep the solution of every M-th point (and of special points and the last): smaller files"),
@@ -260,7 +298,9 @@ def _rod(w, EI, GJ, EA, L):
 def _curve(rod, straight_only: str | None = None):
     """The --reference curve for ``rod`` (None for the straight span); ``straight_only`` names a
     command that needs the straight reference."""
-    spec = click.get_current_context().meta.get("rodcont.reference", "straight") or "straight"
+    spec = click.get_current_context().meta.get("rodcont.reference", "straight")
+    if spec is None or not spec.strip():
+        raise UserError("--reference needs KIND[:ARGS] (straight, bump:H,THETA, ...)")
     if spec.strip() == "straight":
         return None
     if straight_only:
@@ -268,12 +308,19 @@ def _curve(rod, straight_only: str | None = None):
                         f"got --reference {spec}")
     from .curves import parse_reference
     try:
-        curve = parse_reference(spec, rod.L)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
+        with np_errstate():
+            curve = parse_reference(spec, rod.L)
+    except (ValueError, ArithmeticError) as exc:
+        raise UserError(f"--reference {spec}: {exc}" if not str(exc).startswith("--reference") else str(exc)) \
+            from None
     if abs(curve.span - rod.L) > 1e-9 * rod.L:
         raise UserError(f"--reference {spec}: its span {curve.span:g} differs from --L {rod.L:g}; give --L {curve.span:g}")
     return curve
+
+
+def np_errstate():
+    import numpy as np
+    return np.errstate(all="ignore")
 
 
 def _tension(gamma, rod):
@@ -333,8 +380,9 @@ def _explicit(*names):
 
 def _check_out(out, inputs=(), overwrite=False, what="--out"):
     from .branchfile import BranchFileError, check_output
+    config = click.get_current_context().meta.get("rodcont.config_file")
     try:
-        return check_output(out, inputs, overwrite, what)
+        return check_output(out, list(inputs) + ([config] if config else []), overwrite, what)
     except BranchFileError as exc:
         raise UserError(str(exc)) from None
 
@@ -347,6 +395,11 @@ def _image_out(path, inputs=()):
     for src in inputs:
         if same_file(path, src):
             raise UserError(f"-o {path} is the input file {src}: write to another file")
+    from .branchfile import BranchFileError, check_regular_target
+    try:
+        check_regular_target(path, "-o")
+    except BranchFileError as exc:
+        raise UserError(str(exc)) from None
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         raise UserError(f"cannot write {path}: directory {d} does not exist")
@@ -806,8 +859,10 @@ def plot(files, output, xvar, yvar, labels, log, title):
     try:
         response_diagram(data, output, title, x=xvar, y=yvar, labels=list(labels) or None,
                          xscale=None if log is None else ("log" if log else "linear"))
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
+    except (ValueError, OverflowError) as exc:
+        raise UserError(f"cannot draw: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output}")
 
 
@@ -838,7 +893,14 @@ def shape(file, points, branch, output):
         r = model.centreline(disc, pt["x"], S)
         curves.append((r, f"#{pt['index']}: Φ = {pt['phi_L']:.4f}, stretch = {pt['stretch']:.4f}"))
     from .plots import shape_figure
-    shape_figure(curves, output, f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
+    if not all(np.all(np.isfinite(r)) and np.max(np.abs(r)) < 1e100 for r, _ in curves):
+        raise UserError(f"{file}: the stored solution gives a centreline that is not finite")
+    try:
+        shape_figure(curves, output, f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
+    except (ValueError, OverflowError) as exc:
+        raise UserError(f"cannot draw: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output}")
 
 
@@ -856,7 +918,7 @@ def shape(file, points, branch, output):
 @click.option("--forced", type=float, multiple=True, callback=_number("--forced"),
               help="a parameter value that gets a point of its own")
 @click.option("--uniform", is_flag=True, help="keep the fold's mesh (no adaptation)")
-@click.option("--N-max", "N_max", type=click.IntRange(1, 100000), default=400, show_default=True)
+@click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=400, show_default=True)
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="fold-curve file to write (HDF5)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True)
@@ -961,6 +1023,16 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
         raise UserError(f"cannot create {out_dir}: directory {parent} does not exist")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise UserError(f"--out {out_dir} exists and is not a directory")
+    from .drivers.trace import TraceOptions
+    try:
+        TraceOptions(**{key: v for key, v in kw.items() if key not in ("store_every", "curve")})
+        for g in gammas:
+            tension = rod.tension(g)
+            if not math.isfinite(tension):
+                raise ValueError(f"--gamma {g:g} gives a tension that is not finite")
+    except (ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
+    made = not os.path.exists(out_dir)
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
@@ -969,16 +1041,25 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
     try:
         res = run_sweep(list(gammas), out_dir, rod=rod, N=N, k=k, jobs=jobs, progress=not quiet, diagram=whole,
                         overwrite=overwrite, **kw)
-    except (ValueError, TypeError) as exc:
-        raise UserError(str(exc)) from None
+    except (ValueError, TypeError, OSError) as exc:
+        if made and not os.listdir(out_dir):
+            os.rmdir(out_dir)
+        msg = f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise UserError(msg) from None
     click.echo(f"{'gamma':>8} {'branches':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
     for r in res["branches"]:
         ff = f"{r['first_fold']:18.10f}" if r["first_fold"] is not None else f"{'-':>18}"
         click.echo(f"{r['gamma']:8g} {r['branches']:8d} {r['points']:7d} {r['folds']:6d} {ff}  {r['stop_reason']}")
     click.echo(f"diagram      {res['diagram']}")
     click.echo(f"time         {time.perf_counter() - t0:.2f} s ({res['jobs']} processes)")
-    if any(r["error"] for r in res["branches"]):
-        sys.exit(1)
+    failed = [r for r in res["branches"] if r["error"]]
+    if failed:
+        if made and not os.listdir(out_dir):
+            os.rmdir(out_dir)
+        first = failed[0]
+        raise UserError(f"{len(failed)} of {len(res['branches'])} Gamma failed (Gamma {first['gamma']:g}: "
+                        f"{first['error']}); the others are in {out_dir}" if len(failed) < len(res["branches"])
+                        else f"every Gamma failed (Gamma {first['gamma']:g}: {first['error']})")
 
 
 def _register_extra_commands():
@@ -1002,6 +1083,13 @@ def main(argv=None):
         rv = main_group.main(args=argv, prog_name="rodcont", standalone_mode=False)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
+    except SystemExit as exc:
+        # click turns a write to a closed pipe (`rodcont ... | head`) into exit 1: the reader went
+        # away, not an error of ours
+        if exc.code == 1 and type(sys.stdout).__name__ == "PacifyFlushWrapper":
+            _quiet_stdout()
+            sys.exit(0)
+        raise
     except click.ClickException as exc:
         msg = exc.format_message() if not isinstance(exc, click.UsageError) else _usage_message(exc)
         _err(f"rodcont: error: {' '.join(msg.split())}")
@@ -1010,11 +1098,7 @@ def main(argv=None):
         _err("rodcont: interrupted")
         sys.exit(130)
     except BrokenPipeError:
-        # the reader went away (`rodcont ... | head`): not an error of ours
-        try:
-            sys.stdout = open(os.devnull, "w")
-        except OSError:
-            pass
+        _quiet_stdout()
         sys.exit(0)
     except Exception as exc:  # a bug, or the machine (memory, disk): one line, and say which
         if debug:
@@ -1030,6 +1114,13 @@ def main(argv=None):
              f"please report it with the command line (--debug shows the traceback)")
         sys.exit(1)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _quiet_stdout() -> None:
+    try:
+        sys.stdout = open(os.devnull, "w")
+    except OSError:
+        pass
 
 
 def _err(msg: str) -> None:

@@ -98,9 +98,13 @@ def _is_branch_file(path: str) -> bool:
 
 def _check_output(path: str, inputs=(), what: str = "-o"):
     """The output path: a name, not an input, in a directory that exists and is writable, not a branch file."""
-    from .branchfile import same_file
+    from .branchfile import BranchFileError, check_regular_target, same_file
     if not path or not path.strip():
         raise _user_error(f"{what} needs a file name")
+    try:
+        check_regular_target(path, what)  # a device or FIFO would be replaced by the rename
+    except BranchFileError as exc:
+        raise _user_error(str(exc)) from None
     for src in inputs:
         if same_file(path, src):
             raise _user_error(f"{what} {path} is the input file {src}: write to another file")
@@ -180,14 +184,18 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
         if samples * len(data) > MAX_SERIES_VALUES:
             raise _user_error(f"--all with --samples {samples} on {len(data)} points is {samples * len(data):,} "
                               f"samples (at most {MAX_SERIES_VALUES:,}): lower --samples")
-        if fmt == "vtk":
-            d = series_dir(output)
-            if os.path.lexists(d) and not os.path.isdir(d):
-                raise _user_error(f"cannot write the series: {d} exists and is not a directory")
+        d = series_dir(output) if fmt == "vtk" else None
+        if d is not None and os.path.lexists(d) and not os.path.isdir(d):
+            raise _user_error(f"cannot write the series: {d} exists and is not a directory")
+        made = d is not None and not os.path.exists(d)
         try:
             n = export_branch(data, output, fmt, samples, grid)
-        except (ExportError, BranchFileError) as exc:
-            raise _user_error(str(exc)) from None
+        except (ExportError, BranchFileError, OSError) as exc:
+            if made:  # leave nothing half-written behind
+                import shutil
+                shutil.rmtree(d, ignore_errors=True)
+            msg = f"cannot write {output}: {exc.strerror}" if isinstance(exc, OSError) and exc.strerror else str(exc)
+            raise _user_error(msg) from None
         extra = f", one .vtp per point in {series_dir(output)}" if fmt == "vtk" else ""
         click.echo(f"wrote {output} ({n} points, {samples} samples each{extra})")
         return
@@ -196,6 +204,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
         export_point(data, point.strip(), output, fmt, samples, grid)
     except (ExportError, BranchFileError) as exc:
         raise _user_error(str(exc)) from None
+    except OSError as exc:
+        raise _user_error(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output} (point {i}, Φ = {float(data.branch['phi_L'][i]):.10g}, {samples} samples)")
 
 
@@ -232,4 +242,6 @@ def animate_cmd(file, branch, output, fps, samples, max_frames, title):
         n = animate(data, output, fps=fps, samples=samples, max_frames=max_frames, others=others, title=title)
     except ExportError as exc:
         raise _user_error(str(exc)) from None
+    except OSError as exc:
+        raise _user_error(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output} ({n} frames of {len(data)} points)")

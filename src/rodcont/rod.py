@@ -129,8 +129,9 @@ class RodParameters:
                                  f"change units")
             setattr(self, name, float(v))
         g = np.asarray(self.weight_direction, float)
-        if g.shape != (3,) or not np.isfinite(g).all() or np.linalg.norm(g) == 0:
-            raise ValueError("weight_direction must be a non-zero 3-vector")
+        if g.shape != (3,) or not np.isfinite(g).all() or not np.any(g != 0):
+            raise ValueError("weight_direction must be a non-zero 3-vector of finite numbers")
+        g = g / np.max(np.abs(g))  # scaled first: a huge vector has a finite norm
         self.weight_direction = tuple(g / np.linalg.norm(g))
 
     def tension(self, gamma: float) -> float:

@@ -60,8 +60,9 @@ def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: 
     phi_max, phi_min = check_number("phi_max", phi_max), check_number("phi_min", phi_min)
     if not phi_min < phi_max:
         raise ValueError("phi_min must be below phi_max")
-    if phi_max > 1e4:
-        raise ValueError("phi_max above 1e4 rad would need a mesh of millions of points")
+    if max(abs(phi_max), abs(phi_min)) > 200.0:
+        raise ValueError("critical twists are computed up to |phi| = 200 rad (a dense eigenproblem on a mesh "
+                         "that resolves them); choose a smaller window")
     weightless = RodParameters(EI=rod.EI, GJ=rod.GJ, EA=rod.EA, w=0.0, L=rod.L,
                                weight_direction=rod.weight_direction)
     check_tension(weightless, T)

@@ -92,7 +92,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
                     max_error=max_error, source=f"{data.label}: fold {fold}",
                     settings=json.dumps(dict(range=[lo, hi], ds=ds, ds_max=ds_max, max_steps=max_steps,
                                              forced=list(forced), max_error=max_error)))
-        writer = BranchWriter(out, meta)
+        writer = BranchWriter(out, meta, min_points=2)
         group = writer.group("/", extra_columns=(param,))
         _mesh_group(writer, one)
     parts, reasons = [], []

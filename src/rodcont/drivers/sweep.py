@@ -143,6 +143,8 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
         from ..branchfile import load_diagram
         from ..plots import response_diagram
         path = os.path.join(out_dir, "response_diagram.png")
+        if os.path.lexists(path) and not os.path.isfile(os.path.realpath(path)):
+            raise ValueError(f"cannot write {path}: not a regular file")
         response_diagram([load_diagram(p) for p in ok], path)
         out["diagram"] = path
     return out
