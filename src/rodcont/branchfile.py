@@ -229,6 +229,7 @@ class _Group:
         self.g = g
         self.store_every = 1
         self._pending = None  # (row, x, tangent) of the last point whose solution was not stored
+        self._queue: list[dict] = []  # points added but not yet written (see drain)
 
     def _matrix(self, name, width, dtype):
         g = self.g
@@ -242,38 +243,58 @@ class _Group:
         return ds
 
     def add(self, row: dict, kind: str, located: bool, x, tangent, breakpoints) -> None:
-        g, i = self.g, self.n
-        for name in self.columns:
-            ds = g[name]
-            ds.resize(i + 1, axis=0)
-            ds[i] = float(row[name])
-        for name, val in (("helical_waves", int(row["helical_waves"])), ("located", int(bool(located))),
-                          ("unstable_modes", int(row.get("unstable_modes", -1))), ("kind", str(kind))):
-            ds = g[name]
-            ds.resize(i + 1, axis=0)
-            ds[i] = val
+        """Queue one point; :meth:`drain` writes the queue (one resize and one write per dataset:
+        per-point writes into HDF5 cost more than the continuation step that made the point)."""
+        i = self.n
         # a thinned file keeps the solutions of its folds, branch points, starts and ends (events)
         special = str(kind) not in ("regular", "forced")
         store = self.store_every <= 1 or i % self.store_every == 0 or special
-        for name, vec, dtype in (("coefficients", x, "f8"), ("tangent", tangent, "f4"),
-                                 ("breakpoints", breakpoints, "f8")):
-            vec = np.asarray(vec)
-            ds = self._matrix(name, vec.size, dtype)
-            ds.resize(i + 1, axis=0)
+        x, tangent = np.array(x, dtype=float), np.array(tangent, dtype=float)
+        self._queue.append(dict(
+            scalars=[float(row[name]) for name in self.columns],
+            helical_waves=int(row["helical_waves"]), located=int(bool(located)),
+            unstable_modes=int(row.get("unstable_modes", -1)), kind=str(kind),
+            coefficients=x, tangent=tangent, breakpoints=np.array(breakpoints, dtype=float),
             # a thinned file keeps tangents at its special points only (a restart elsewhere
             # starts along the parameter)
-            keep = name == "breakpoints" or (store and (name != "tangent" or special or self.store_every <= 1))
-            if keep:
-                ds[i, :vec.size] = vec
-        self._pending = None if store else (i, np.asarray(x), np.asarray(tangent))
+            keep=dict(coefficients=store, tangent=store and (special or self.store_every <= 1), breakpoints=True)))
+        self._pending = None if store else (i, x, tangent)
         self.n += 1
+
+    def drain(self) -> None:
+        """Write the queued points into the in-memory file."""
+        q, self._queue = self._queue, []
+        if not q:
+            return
+        g, i0, m = self.g, self.n - len(q), len(q)
+        scalars = np.array([r["scalars"] for r in q], dtype=float).reshape(m, len(self.columns))
+        for j, name in enumerate(self.columns):
+            ds = g[name]
+            ds.resize(i0 + m, axis=0)
+            ds[i0:] = scalars[:, j]
+        for name, dtype in (("helical_waves", "i4"), ("located", "i1"), ("unstable_modes", "i4")):
+            ds = g[name]
+            ds.resize(i0 + m, axis=0)
+            ds[i0:] = np.array([r[name] for r in q], dtype=dtype)
+        ds = g["kind"]
+        ds.resize(i0 + m, axis=0)
+        ds[i0:] = np.array([r["kind"] for r in q], dtype=object)
+        for name, dtype in (("coefficients", "f8"), ("tangent", "f4"), ("breakpoints", "f8")):
+            ds = self._matrix(name, max(r[name].size for r in q), dtype)
+            ds.resize(i0 + m, axis=0)
+            block = np.full((m, ds.shape[1]), np.nan)
+            for k, r in enumerate(q):
+                if r["keep"][name]:
+                    block[k, :r[name].size] = r[name]
+            ds[i0:, :] = block.astype(dtype)
 
     def fill_pending(self) -> None:
         """Store the solution of the last point if it was thinned out (so the file always ends restartable)."""
+        self.drain()
         if self._pending is not None:
             i, x, t = self._pending
             self.g["coefficients"][i, :x.size] = x
-            self.g["tangent"][i, :t.size] = t
+            self._matrix("tangent", t.size, "f4")[i, :t.size] = t
             self._pending = None
 
     def set_special(self, folds: list[dict], branch_points: list[dict]) -> None:
@@ -342,6 +363,8 @@ class BranchWriter:
         if self.points < max(self.min_points, 1) or self.closed:
             return
         t = time.monotonic()
+        for grp in self.groups.values():
+            grp.drain()
         self.f.flush()
         publish(self.path, self.f.id.get_file_image())
         self.published = self.points
