@@ -535,9 +535,16 @@ def test_stored_strings_are_whole_and_settings_are_stored(g1, tmp_path):
 
 
 def test_a_closed_pipe_is_not_an_error():
-    r = subprocess.run(" ".join(CLI + ["solve", "--gamma", "1", "--phi", "10"]) + " | head -1", shell=True,
-                       env=ENV, capture_output=True, text=True, timeout=120)
-    assert "Traceback" not in r.stderr and "Error" not in r.stderr
+    # `rodcont solve ... | true`: the reader has gone before the first write; status 0, nothing said
+    # (click turns EPIPE into exit 1 through a wrapper whose class name changed between releases)
+    r_fd, w_fd = os.pipe()
+    os.close(r_fd)
+    try:
+        r = subprocess.run(CLI + ["solve", "--gamma", "1", "--phi", "10"], env=ENV, stdout=w_fd,
+                           stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w_fd)
+    assert r.returncode == 0 and r.stderr == ""
 
 
 def test_ctrl_c_at_once_is_one_line():

@@ -1086,7 +1086,7 @@ def main(argv=None):
     except SystemExit as exc:
         # click turns a write to a closed pipe (`rodcont ... | head`) into exit 1: the reader went
         # away, not an error of ours
-        if exc.code == 1 and type(sys.stdout).__name__ == "PacifyFlushWrapper":
+        if exc.code == 1 and type(sys.stdout).__name__.endswith("PacifyFlushWrapper"):  # click >= 8.2: _Pacify...
             _quiet_stdout()
             sys.exit(0)
         raise
