@@ -197,7 +197,9 @@ def test_interrupted_trace_leaves_a_valid_file_and_restarts(tmp_path):
     assert r.returncode == 0, r.stderr
     cont = rodcont.load_branch(str(out2))
     assert cont.branch["phi_L"][0] == pytest.approx(data.branch["phi_L"][-1], abs=1e-9)
-    assert cont.branch["phi_L"][-1] > cont.branch["phi_L"][0]
+    # it goes on, not back: the stretch grows monotonically along this branch (Phi does not: if the
+    # interrupt came close to the fold at 13.10, the continuation passes it and Phi falls again)
+    assert len(cont) > 2 and np.all(np.diff(cont.branch["stretch"]) > 0)
 
 
 def test_python_cli_entry_matches_console_script():

@@ -129,3 +129,30 @@ def test_settings_are_validated():
         ContinuationSettings(ds=-1).validate()
     with pytest.raises(ValueError):
         ContinuationSettings(ds=1.0, ds_max=0.5).validate()
+
+
+class _Line:
+    """``x = p``: the simplest branch, for the event machinery alone."""
+
+    def residual(self, x, p):
+        return x - p
+
+    def tangent(self, x, p):
+        return sp.identity(1, format="csc"), np.array([-1.0])
+
+
+def test_an_event_just_ahead_of_the_start_is_located_to_a_reachable_tolerance():
+    # g is 1e-9 at the start and about -0.06 a step later: its tolerance is relative to that change,
+    # not to 1e-9 (1e-20, below the rounding of g, which the secant used to chase for many iterations)
+    calls = []
+
+    def g(q):
+        calls.append(q.p)
+        return 0.5 + 1e-9 - q.p - 3.0 * (q.p - 0.5) ** 2
+
+    s = ContinuationSettings(ds=0.05, ds_max=0.05, max_steps=10)
+    pts, reason = continuation(_Line(), np.array([0.5]), 0.5, s, events=[Event("g", g, stop=True)])
+    assert reason == "g"
+    root = 0.5 + (-1.0 + math.sqrt(1.0 + 12e-9)) / 6.0
+    assert pts[-1].p == pytest.approx(root, abs=1e-14)
+    assert len(calls) <= 8

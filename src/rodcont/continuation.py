@@ -217,7 +217,9 @@ class Event:
     name: str
     function: Callable[[Point], float]
     stop: bool = False
-    tol: float = 1e-11  # located where |g| <= tol * |g at the last point before it|
+    # located where |g| <= tol * max |g| at the two points around the crossing: relative to the step's change
+    # of g, not to g at the point before it, which may be already tiny (a restart just short of the event)
+    tol: float = 1e-11
     action: str = ""
 
     def __post_init__(self):
@@ -332,7 +334,8 @@ class EventDetector(Detector):
         g0, g1 = ev.function(base), ev.function(new)
         if not g0 * g1 < 0:
             return []
-        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), 1e-300), f"event:{ev.name}")
+        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
+                           f"event:{ev.name}")
         status = {"stop": Stop.EVENT, "segment": Stop.SEGMENT}.get(ev.action)
         if f is not None:
             return [Finding(f.ds, f, StopReason(status, ev.name, ev.name) if status else None)]
@@ -730,8 +733,9 @@ class Tracker:
             for j, f in enumerate(found):
                 if f.point is None or f.stop is not None or g0 * ev.function(f.point) >= 0:
                     continue
-                e = self.locate(base, f.offset, ev.function, g0, ev.function(f.point),
-                                ev.tol * max(abs(g0), 1e-300), f"event:{ev.name}")
+                g1 = ev.function(f.point)
+                e = self.locate(base, f.offset, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
+                                f"event:{ev.name}")
                 stop = StopReason(Stop.EVENT, ev.name, ev.name)
                 if e is None:
                     return found[:j] + [Finding(f.offset, None, stop)]
