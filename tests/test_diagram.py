@@ -137,7 +137,10 @@ def test_diagram_file_layout_and_readers(diagram_g1, tmp_path, capsys):
     assert code == 0, err
     assert rodcont.load_branch(out_path).branch["phi_L"][0] == pytest.approx(SECONDARY[(1.0, 2)]["phi_L"], abs=1e-6)
     code, out, err = run(["plot", path, "-o", str(tmp_path / "d.png")], capsys)
-    assert code == 0 and os.path.getsize(tmp_path / "d.png") > 0
+    assert code == 0
+    import matplotlib.image as mpimg  # the command's picture is the figure tested in test_plots.py: same size
+    img = mpimg.imread(str(tmp_path / "d.png"))
+    assert img.shape[:2] == (754, 1066) and np.ptp(img[:, :, :3]) > 0.5
 
 
 def test_a_seed_on_a_known_branch_is_not_traced_again():

@@ -785,8 +785,11 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     for j, db in enumerate(dg.branches):
         click.echo(f"  {j}: {len(db.branch):4d} points {len(db.branch.folds):2d} folds {db.time:6.2f} s  "
                    f"{db.origin}")
-        click.echo(f"       ends: {db.ends[0]}")
-        click.echo(f"             {db.ends[1]}")
+        if db.ends[0] == db.ends[1]:  # both directions stopped by the same guard: say it once
+            click.echo(f"       both ends: {db.ends[0]}")
+        else:
+            click.echo(f"       ends: {db.ends[0]}")
+            click.echo(f"             {db.ends[1]}")
     for origin, why in dg.skipped:
         click.echo(f"  not traced: {origin}: {why}")
     click.echo(f"time             {elapsed:.2f} s")

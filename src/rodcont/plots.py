@@ -45,7 +45,7 @@ def _segments(x, y, unstable):
 
 
 def response_diagram(files, path: str, title: str | None = None, x: str | None = None, y: str | None = None,
-                     labels=None, xscale: str | None = None) -> None:
+                     labels=None, xscale: str | None = None) -> Figure:
     """Branches of every file, ``y`` (default ``phi_L``) against ``x`` (default ``stretch``).
 
     ``files``: :class:`rodcont.branchfile.DiagramData` (a trace file is a
@@ -56,6 +56,7 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
     where a branch ends. A fold-curve file defaults to ``phi_L`` at the fold
     against its parameter. ``xscale``: ``log``, ``linear`` or None (log when
     ``x`` is the stretch and positive). The legend sits outside the axes.
+    Returns the figure (saved to ``path``) for callers that want to adjust or inspect it.
     """
     fig = _figure(8.2, 5.8)
     ax = fig.add_subplot(1, 1, 1)
@@ -110,6 +111,7 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
     ax.set_title(title or "Response diagram: twisted heavy clamped rod")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
+    return fig
 
 
 def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "") -> None:
