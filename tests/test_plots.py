@@ -116,3 +116,27 @@ def test_other_variables_on_the_axes(tmp_path):
     drawn = np.concatenate([ln.get_ydata() for ln in _curves(ax)])
     assert set(np.round(drawn, 12)) == set(np.round(torque, 12))
     assert ax.get_xscale() == "linear" and "torque" in ax.get_ylabel()
+
+
+def test_the_shape_drawn_at_the_fold_is_the_lagrangian_rod(tmp_path, monkeypatch):
+    # `rodcont shape` at the primary fold: the drawn polyline, measured as a curve, has the length
+    # (1 + stretch) L and the smallest alignment min d3.e1 that the independent shooting code gives there
+    import rodcont.plots
+    from rodcont.cli import main
+
+    made = []
+    original = rodcont.plots.shape_figure
+    monkeypatch.setattr(rodcont.plots, "shape_figure", lambda *a, **k: made.append(original(*a, **k)) or made[-1])
+    with pytest.raises(SystemExit) as exc:
+        main(["shape", DIAGRAM_1, "--branch", "0", "--point", "F1", "-o", str(tmp_path / "s.png")])
+    assert exc.value.code == 0
+    ax = made[0].axes[0]
+    rod = np.array(ax.get_lines()[0].get_data_3d())
+    ref = next(r for r in _REF["primary_folds"] if r["gamma"] == 1.0)
+    assert np.allclose(rod[:, 0], 0.0, atol=1e-12) and np.allclose(rod[:, -1], [1.0, 0.0, 0.0], atol=1e-9)
+    seg = np.diff(rod, axis=1)
+    length = np.sqrt((seg ** 2).sum(axis=0))
+    assert length.sum() - 1.0 == pytest.approx(ref["stretch"], abs=5e-5)  # chord of 400 samples: 5e-6 short
+    assert np.min(seg[0] / length) == pytest.approx(ref["min_d3_e1"], abs=5e-5)
+    lims = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()])
+    assert np.allclose(np.diff(lims, axis=1), lims[0, 1] - lims[0, 0])  # equal scales: the shape is not distorted

@@ -114,8 +114,8 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
     return fig
 
 
-def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "") -> None:
-    """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales."""
+def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "") -> Figure:
+    """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales; returns the figure (saved to ``path``)."""
     fig = _figure(8, 5)
     ax = fig.add_subplot(projection="3d")
     allpts = np.concatenate([r for r, _ in curves], axis=1)
@@ -133,3 +133,4 @@ def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
+    return fig
