@@ -8,3 +8,5 @@ rm -f gamma_*.h5
 rodcont sweep --gamma 0 0.5 1 2 5 10 --diagram --phi-max 40 --store-every 20 --out . --overwrite --quiet
 rodcont plot diagram_0.h5 diagram_0.5.h5 diagram_1.h5 diagram_2.h5 diagram_5.h5 diagram_10.h5 \
     -o response_diagram.png --title "Twisted heavy clamped rod: every branch up to Phi = 40 (paper values)"
+rodcont plot diagram_0.h5 diagram_1.h5 diagram_5.h5 --x phi_L --y torque -o distinguished_diagram.png \
+    --title "Distinguished diagram: torque against Phi (Gamma = 0, 1, 5)"
