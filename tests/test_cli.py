@@ -9,6 +9,7 @@ import time
 import h5py
 import numpy as np
 import pytest
+from conftest import assert_picture
 
 import rodcont
 from rodcont.cli import main
@@ -224,10 +225,3 @@ def test_restart_from_a_fold_goes_on_past_it(g1_file, tmp_path, capsys):
     assert d.branch["phi_L"][0] == pytest.approx(ref.folds["phi_L"][0], abs=1e-10)
     assert len(d.folds.get("index", [])) == 0
     assert np.all(np.diff(d.branch["stretch"]) > 0) and d.branch["phi_L"][-1] < d.branch["phi_L"][0]
-
-
-def assert_picture(path):
-    """A PNG that decodes and is not blank (what is drawn is tested in test_plots.py)."""
-    import matplotlib.image as mpimg
-    img = mpimg.imread(str(path))
-    assert img.ndim == 3 and min(img.shape[:2]) > 300 and np.ptp(img[:, :, :3]) > 0.5

@@ -6,6 +6,7 @@ from concurrent.futures import ThreadPoolExecutor
 import h5py
 import numpy as np
 import pytest
+from conftest import assert_picture
 
 import rodcont
 from rodcont.drivers.foldcurve import fold_curve
@@ -121,10 +122,3 @@ def test_sweep_on_a_dask_cluster_with_process_workers(tmp_path):
     firsts = {r["gamma"]: r["first_fold"] for r in res["branches"]}
     assert firsts[1.0] == pytest.approx(13.0999938, abs=1e-6) and firsts[0.0] == pytest.approx(10.7769232, abs=1e-6)
     assert all(r["error"] is None for r in res["branches"])
-
-
-def assert_picture(path):
-    """A PNG that decodes and is not blank (what is drawn is tested in test_plots.py)."""
-    import matplotlib.image as mpimg
-    img = mpimg.imread(str(path))
-    assert img.ndim == 3 and min(img.shape[:2]) > 300 and np.ptp(img[:, :, :3]) > 0.5
