@@ -17,3 +17,31 @@ def assert_picture(path):
     import numpy as np
     img = mpimg.imread(str(path))
     assert img.ndim == 3 and min(img.shape[:2]) > 300 and np.ptp(img[:, :, :3]) > 0.5
+
+
+def run(args, capsys):
+    """Run the CLI in-process; returns (exit status, stdout, stderr)."""
+    import pytest
+    from rodcont.cli import main
+    with pytest.raises(SystemExit) as exc:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
+
+
+def assert_tangent_matches_differences(disc, x, p, h):
+    """The assembled sparse Jacobian ``dF/dx`` and ``dF/dp_0`` of a discretisation against dense central
+    differences with step ``h`` (truncation O(h^2), rounding ~ eps |F| / h), and ``F`` against the residual."""
+    import numpy as np
+    F, J, (Fp,) = disc.linearise(x, p, [0])
+    Jfd = np.empty((disc.size, disc.size))
+    for j in range(disc.size):
+        e = np.zeros(disc.size)
+        e[j] = h
+        Jfd[:, j] = (disc.residual(x + e, p) - disc.residual(x - e, p)) / (2 * h)
+    assert np.allclose(J.toarray(), Jfd, rtol=1e-6, atol=1e-6)
+    pp, pm = p.copy(), p.copy()
+    pp[0] += h
+    pm[0] -= h
+    assert np.allclose(Fp, (disc.residual(x, pp) - disc.residual(x, pm)) / (2 * h), atol=1e-7)
+    assert np.allclose(F, disc.residual(x, p), atol=1e-13)

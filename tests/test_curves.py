@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import assert_tangent_matches_differences
 from scipy.integrate import quad, solve_ivp
 
 from rodcont.continuation import ContinuationSettings, Kind, Tracker
@@ -401,17 +402,7 @@ def test_moving_frame_jacobian_matches_finite_differences(spec):
         fd = (model.residual(S, zp, p) - model.residual(S, zm, p)) / (2 * h)
         assert np.allclose(dG[:, j, :], fd, rtol=1e-6, atol=1e-6), j
     x = model.initial_guess(disc, 10.0) + 1e-2 * rng.standard_normal(disc.size)
-    F, J, (Fp,) = disc.linearise(x, p, [0])
-    Jfd = np.empty((disc.size, disc.size))
-    for j in range(disc.size):
-        e = np.zeros(disc.size)
-        e[j] = h
-        Jfd[:, j] = (disc.residual(x + e, p) - disc.residual(x - e, p)) / (2 * h)
-    assert np.allclose(J.toarray(), Jfd, rtol=1e-6, atol=1e-6)
-    pp, pm = p.copy(), p.copy()
-    pp[0] += h
-    pm[0] -= h
-    assert np.allclose(Fp, (disc.residual(x, pp) - disc.residual(x, pm)) / (2 * h), atol=1e-7)
+    assert_tangent_matches_differences(disc, x, p, h)
 
 
 @pytest.mark.parametrize("spec", ["bump:0.05,0.3", "helix-frenet"])

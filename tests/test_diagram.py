@@ -17,9 +17,9 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import run
 
 import rodcont
-from rodcont.cli import main
 from rodcont.drivers.diagram import critical_twists, deflate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -30,13 +30,6 @@ with open(os.path.join(HERE, "data", "lagrangian_folds.json")) as fh:
     REF = json.load(fh)
 PRIMARY = {r["gamma"]: r for r in REF["primary_folds"]}
 SECONDARY = {(r["gamma"], r["n"]): r for r in REF["secondary_folds"]}
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(list(args))
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
 
 
 @pytest.mark.parametrize("T", [0.0, 10.0, 20.0, 100.0, -20.0])

@@ -11,9 +11,10 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from conftest import run
 
 from rodcont.branchfile import BranchWriter, FOLD_FIELDS, SCALARS, load_branch, load_diagram
-from rodcont.cli import main, main_group
+from rodcont.cli import main_group
 from rodcont.cli_export import animate_cmd, export_cmd
 from rodcont.export import ExportError, rod_fields, write_npz
 from rodcont.system import point_system
@@ -21,13 +22,6 @@ from rodcont.system import point_system
 for _cmd in (export_cmd, animate_cmd):
     if _cmd.name not in main_group.commands:
         main_group.add_command(_cmd)
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main([str(a) for a in args])
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
 
 
 def assert_one_line_error(code, out, err, *fragments):

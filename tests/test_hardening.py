@@ -23,20 +23,13 @@ import time
 import h5py
 import numpy as np
 import pytest
+from conftest import run
 
 import rodcont
-from rodcont.cli import main
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src"), OPENBLAS_NUM_THREADS="1")
 CLI = [sys.executable, os.path.join(ROOT, "cli.py")]
-
-
-def run(args, capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(list(args))
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
 
 
 def one_line_error(code, out, err):

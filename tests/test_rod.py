@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import assert_tangent_matches_differences
 from scipy.optimize import minimize_scalar
 
 from rodcont.drivers.solve import solve_equilibrium
@@ -60,19 +61,7 @@ def test_assembled_tangent_matches_dense_finite_differences():
     eq = solve_equilibrium(1.0, 6.0, PAPER, N=3, k=3)
     x = eq.x + 1e-3 * rng.standard_normal(disc.size)
     p = model.params(6.0, T=10.0)
-    F, J, (Fp,) = disc.linearise(x, p, [0])
-    h = 1e-6
-    Jfd = np.empty((disc.size, disc.size))
-    for j in range(disc.size):
-        e = np.zeros(disc.size)
-        e[j] = h
-        Jfd[:, j] = (disc.residual(x + e, p) - disc.residual(x - e, p)) / (2 * h)
-    assert np.allclose(J.toarray(), Jfd, rtol=1e-6, atol=1e-6)
-    pp, pm = p.copy(), p.copy()
-    pp[0] += h
-    pm[0] -= h
-    assert np.allclose(Fp, (disc.residual(x, pp) - disc.residual(x, pm)) / (2 * h), atol=1e-7)
-    assert np.allclose(F, disc.residual(x, p), atol=1e-13)
+    assert_tangent_matches_differences(disc, x, p, 1e-6)
 
 
 # --------------------------------------------------------------------------

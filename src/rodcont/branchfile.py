@@ -107,9 +107,10 @@ def check_regular_target(path: str, what: str = "--out") -> None:
             raise BranchFileError(f"cannot write {path}: not a regular file (a device, a pipe, a socket)")
 
 
-def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--out") -> str:
-    """Validate an output path before any work: not an input, its directory exists and is
-    writable, an existing file only with ``overwrite``. Returns the path; raises ``BranchFileError``."""
+def check_writable(path: str, inputs=(), what: str = "--out") -> str:
+    """An output path that can be written: a name, not an input (as a file, through any link), a
+    regular file or nothing, in a directory that exists and is writable. Returns the path; raises
+    ``BranchFileError``. (An existing file is not refused here: see :func:`check_output`.)"""
     if not isinstance(path, str) or not path.strip():
         raise BranchFileError(f"{what} needs a file name")
     for src in inputs:
@@ -123,10 +124,16 @@ def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--o
         raise BranchFileError(f"cannot write {path}: it is a directory")
     if not os.access(d, os.W_OK | os.X_OK):
         raise BranchFileError(f"cannot write {path}: directory {d} is not writable")
+    if os.path.exists(path) and not os.access(path, os.W_OK):
+        raise BranchFileError(f"cannot write {path}: permission denied")
+    return path
+
+
+def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--out") -> str:
+    """:func:`check_writable`, and an existing file only with ``overwrite`` (checked before any work)."""
+    check_writable(path, inputs, what)
     if os.path.lexists(path) and not overwrite:
         raise BranchFileError(f"{path} exists: choose another {what} or add --overwrite to replace it")
-    if os.path.exists(path) and not os.path.isfile(os.path.realpath(path)):
-        raise BranchFileError(f"cannot write {path}: not a regular file")
     return path
 
 

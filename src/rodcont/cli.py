@@ -388,26 +388,12 @@ def _check_out(out, inputs=(), overwrite=False, what="--out"):
 
 
 def _image_out(path, inputs=()):
-    """A PNG/GIF/MP4 output path: its suffix, its directory, not an input."""
-    if not path or not path.strip():
-        raise UserError("-o needs a file name")
-    from .branchfile import same_file
-    for src in inputs:
-        if same_file(path, src):
-            raise UserError(f"-o {path} is the input file {src}: write to another file")
-    from .branchfile import BranchFileError, check_regular_target
+    """A PNG/GIF/MP4 output path: a writable name that is not an input (the suffix is checked by each command)."""
+    from .branchfile import BranchFileError, check_writable
     try:
-        check_regular_target(path, "-o")
+        return check_writable(path, inputs, "-o")
     except BranchFileError as exc:
         raise UserError(str(exc)) from None
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise UserError(f"cannot write {path}: directory {d} does not exist")
-    if os.path.isdir(path):
-        raise UserError(f"cannot write {path}: it is a directory")
-    if not os.access(d, os.W_OK | os.X_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
-        raise UserError(f"cannot write {path}: permission denied")
-    return path
 
 
 # --------------------------------------------------------------------------
@@ -657,7 +643,7 @@ def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet)
         t0 = time.perf_counter()
         interrupted = False
         try:
-            br = run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=progress, **extra, **kw)
+            run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=progress, **extra, **kw)
         except KeyboardInterrupt:
             interrupted = True
         except (ValueError, TypeError) as exc:

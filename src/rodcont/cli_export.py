@@ -98,23 +98,11 @@ def _is_branch_file(path: str) -> bool:
 
 def _check_output(path: str, inputs=(), what: str = "-o"):
     """The output path: a name, not an input, in a directory that exists and is writable, not a branch file."""
-    from .branchfile import BranchFileError, check_regular_target, same_file
-    if not path or not path.strip():
-        raise _user_error(f"{what} needs a file name")
+    from .branchfile import BranchFileError, check_writable
     try:
-        check_regular_target(path, what)  # a device or FIFO would be replaced by the rename
+        check_writable(path, inputs, what)
     except BranchFileError as exc:
         raise _user_error(str(exc)) from None
-    for src in inputs:
-        if same_file(path, src):
-            raise _user_error(f"{what} {path} is the input file {src}: write to another file")
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise _user_error(f"cannot write {path}: directory {d} does not exist")
-    if os.path.isdir(path):
-        raise _user_error(f"cannot write {path}: it is a directory")
-    if not os.access(d, os.W_OK | os.X_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
-        raise _user_error(f"cannot write {path}: permission denied")
     if os.path.isfile(path) and _is_branch_file(path):
         raise _user_error(f"{path} is an HDF5 (branch) file: export will not overwrite it, choose another name")
     return path

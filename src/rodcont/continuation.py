@@ -61,7 +61,7 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from .linalg import LU, NewtonResult, SingularMatrix, bordered, max_norm, newton_solve
+from .linalg import LU, SingularMatrix, bordered, max_norm, newton_solve
 
 
 # --------------------------------------------------------------------------

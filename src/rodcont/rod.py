@@ -44,10 +44,10 @@ import warnings
 from dataclasses import dataclass, asdict
 
 import numpy as np
-import scipy.sparse as sp
 
 from .collocation import BVProblem, Collocation
 from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
+from .curves import _cross, _dot
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
 FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
@@ -76,19 +76,21 @@ class Jet:
 # --------------------------------------------------------------------------
 # Vector helpers on (3, npts) arrays (np.cross is slow on small arrays)
 # --------------------------------------------------------------------------
-def _dot(a, b):
-    return (a * b).sum(axis=0)
+# _dot and _cross: the vectorised helpers of rodcont.curves (imported above)
 
 
-def _cross(a, b):
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
-    np.multiply(a[1], b[2], out=out[0])
-    out[0] -= a[2] * b[1]
-    np.multiply(a[2], b[0], out=out[1])
-    out[1] -= a[0] * b[2]
-    np.multiply(a[0], b[1], out=out[2])
-    out[2] -= a[1] * b[0]
-    return out
+def _director_jets(r1, r2, r3):
+    """``|r'|^2, |r'|, |r'|^3, r'.r''`` and ``d3 = r'/|r'|`` with its first two S-derivatives."""
+    n2 = _dot(r1, r1)
+    n = np.sqrt(n2)
+    d3 = r1 / n
+    c = _dot(r1, r2)
+    d3r2 = _dot(d3, r2)
+    e = r2 - d3 * d3r2
+    d3p = e / n
+    n3 = n2 * n
+    d3pp = (r3 - d3p * d3r2 - d3 * (_dot(d3p, r2) + _dot(d3, r3))) / n - e * (c / n3)
+    return n2, n, n3, c, d3, d3p, d3pp
 
 
 def _cross2(a, b):
@@ -238,15 +240,7 @@ class EulerianRod:
         F = z[Jet.F]
         Fp = z[Jet.FP]
         phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
-        n2 = _dot(r1, r1)
-        n = np.sqrt(n2)
-        d3 = r1 / n
-        c = _dot(r1, r2)
-        d3r2 = _dot(d3, r2)
-        e = r2 - d3 * d3r2
-        d3p = e / n
-        n3 = n2 * n
-        d3pp = (r3 - d3p * d3r2 - d3 * (_dot(d3p, r2) + _dot(d3, r3))) / n - e * (c / n3)
+        n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
         alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
         bend = _cross(r1, r2)
@@ -327,15 +321,7 @@ class EulerianRod:
         F = z[Jet.F]
         Fp = z[Jet.FP]
         phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
-        n2 = _dot(r1, r1)
-        n = np.sqrt(n2)
-        d3 = r1 / n
-        c = _dot(r1, r2)
-        d3r2 = _dot(d3, r2)
-        e = r2 - d3 * d3r2
-        d3p = e / n
-        n3 = n2 * n
-        d3pp = (r3 - d3p * d3r2 - d3 * (_dot(d3p, r2) + _dot(d3, r3))) / n - e * (c / n3)
+        n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         k1, k2, k3 = k[0, 0], k[1, 0], k[2, 0]
         # the true derivative of the force: F' = [F]' + omega x F
         Ft = np.stack([Fp[0] + k1 * F[2] - k3 * F[1], Fp[1] + k2 * F[2] + k3 * F[0], Fp[2] - k1 * F[0] - k2 * F[1]])

@@ -74,9 +74,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
     tx, tp = pt["direction"]
     v0 = np.asarray(tx, float) if np.size(tx) == x0.size and np.any(tx != 0) else _fold_null_vector(J, F1)
     from ..bifurcation import FoldProblem
-    fp = FoldProblem(two, x0, phi0, q0, v0)
     X0 = np.append(x0, phi0)
-    estimator = ErrorEstimator(one)
 
     events = [Event(f"validity guard: min d3.K3 reached min_alignment = {guard:g}",
                     lambda q_: q_.data["min_alignment"] - guard, stop=True, tol=1e-6)]
