@@ -27,6 +27,22 @@ Layout (names are read by other tools; keep them)::
     /branch_points/index, phi_L, stretch
     /mesh/breakpoints      (N+1,) the first partition; attrs: k, orders, fields, layout
 
+Inside a conduit (``trace --conduit``; root attribute ``conduit``: the wall's
+clearance and contact law, :class:`rodcont.contact.Wall`), the branch table
+gains ``min_gap`` (min over S of c - |Delta|), ``side_force`` (the integral
+of the wall pressure) and ``contact_zones`` (their number), and::
+
+    /contact               attrs: clearance, eps, force_scale, contact_level, law
+    /contact/S             (s,)   sample points of the span
+    /contact/pressure      (n, s) wall force per unit S at the samples, float32
+    /contact/gap           (n, s) c - |Delta|, float32
+    /contact/axial_force   (n, s) F . d3, float32
+    /contact/torque        (n, s) m, float32
+    /contact/zones         (z, 4) point, S_start, S_end, force of every contact zone
+                                  (S_start == S_end: a point contact)
+
+``/contact`` is written when the run ends (also when it is interrupted).
+
 A diagram file holds ``/branches/<j>/`` with the ``branch``, ``folds`` and
 ``branch_points`` groups of each branch (and its end reasons as attributes),
 and a top-level ``/folds`` table of every fold with a ``branch`` column.
@@ -452,6 +468,18 @@ class BranchData:
             return parse_reference(spec, float(self.attrs["L"]))
         except ValueError as exc:
             raise BranchFileError(f"{self.path}: damaged branch file (reference {spec!r}: {exc})") from None
+
+    @property
+    def wall(self):
+        """The conduit wall of the file's rod (``conduit`` attribute; None: no wall)."""
+        spec = str(self.attrs.get("conduit", ""))
+        if not spec:
+            return None
+        from .contact import Wall
+        try:
+            return Wall.from_spec(spec)
+        except (ValueError, TypeError) as exc:
+            raise BranchFileError(f"{self.path}: damaged branch file (conduit {spec!r}: {exc})") from None
 
     @property
     def gamma(self) -> float:

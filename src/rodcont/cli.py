@@ -318,6 +318,56 @@ def _curve(rod, straight_only: str | None = None):
     return curve
 
 
+def _conduit(path, rod):
+    """``(curve, wall)`` of a ``--conduit FILE`` (TOML, section ``[conduit]``); ``(None, None)`` without one.
+
+    Keys: ``clearance`` (required), ``eps``, ``force_scale``, ``contact_level``
+    (:class:`rodcont.contact.Wall`) and ``reference`` (the conduit's axis,
+    ``KIND[:ARGS]`` as for ``--reference``; a ``well:FILE`` is read relative to
+    the conduit file). Without ``reference`` the axis is ``--reference``.
+    """
+    if path is None:
+        return _curve(rod), None
+    import os
+    import tomllib
+    from .contact import Wall
+    try:
+        with open(path, "rb") as fh:
+            if os.fstat(fh.fileno()).st_size > 1 << 20:
+                raise UserError(f"--conduit {path}: larger than 1 MB: not a conduit file")
+            doc = tomllib.load(fh)
+    except OSError as exc:
+        raise UserError(f"--conduit {path}: cannot read it ({exc.strerror or exc})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"--conduit {path}: not a TOML file ({exc})") from None
+    sec = doc.get("conduit")
+    if not isinstance(sec, dict):
+        raise UserError(f"--conduit {path}: needs a [conduit] section with clearance = C")
+    unknown = sorted(set(sec) - {"clearance", "eps", "force_scale", "contact_level", "reference"})
+    if unknown:
+        raise UserError(f"--conduit {path}: unknown key(s) {', '.join(unknown)} in [conduit] (known: clearance, "
+                        f"eps, force_scale, contact_level, reference)")
+    if "clearance" not in sec:
+        raise UserError(f"--conduit {path}: [conduit] needs clearance = C (conduit radius minus rod radius)")
+    try:
+        wall = Wall(**{key: sec[key] for key in ("clearance", "eps", "force_scale", "contact_level") if key in sec})
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"--conduit {path}: {exc}") from None
+    spec = sec.get("reference")
+    if spec is None:
+        return _curve(rod), wall
+    if _explicit("reference"):
+        raise UserError(f"--conduit {path} gives the reference curve: drop --reference")
+    if not isinstance(spec, str):
+        raise UserError(f"--conduit {path}: reference must be a string KIND[:ARGS], got {spec!r}")
+    kind, _, args = spec.strip().partition(":")
+    if kind == "well" and args and not os.path.isabs(args):
+        spec = f"well:{os.path.join(os.path.dirname(os.path.abspath(path)), args)}"
+    ctx = click.get_current_context()
+    ctx.meta["rodcont.reference"] = spec
+    return _curve(rod), wall
+
+
 def np_errstate():
     import numpy as np
     return np.errstate(all="ignore")
@@ -485,8 +535,11 @@ def main_group(ctx, debug):
 @click.option("--phi", "phi", type=float, required=True, callback=_number("--phi"), help="end rotation Phi [rad]")
 @click.option("--load-step", type=float, default=0.5, show_default=True, callback=_number("--load-step", positive=True),
               help="Phi increment of the natural continuation from 0")
+@click.option("--conduit", type=click.Path(dir_okay=False), default=None,
+              help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
+                   "the rod stays inside it, touching its wall where it must")
 @rod_options
-def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
+def solve(gamma, phi, load_step, conduit, N, k, w, EI, GJ, EA, L):
     """One equilibrium at (Gamma, Phi), reached by loading Phi up from 0.
 
     Prints `name value` pairs: stretch, torque, l0, helical_waves,
@@ -496,7 +549,8 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     rod = _rod(w, EI, GJ, EA, L)
     gamma, T = _tension(gamma, rod)
     try:
-        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T, curve=_curve(rod))
+        curve, wall = _conduit(conduit, rod)
+        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T, curve=curve, wall=wall)
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     o = eq.outputs
@@ -505,6 +559,12 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
     click.echo(f"helical_waves {o['helical_waves']}")
     click.echo(f"min_alignment {o['min_alignment']:.15g}")
     click.echo(f"defect {o['defect']:.6g}")
+    if wall is not None:
+        c = eq.contact()
+        click.echo(f"min_gap {c['min_gap']:.6g}")
+        click.echo(f"side_force {c['side_force']:.10g}")
+        for a, b, f in c["zones"]:
+            click.echo(f"contact {a:.6g} {b:.6g} {f:.10g}" + ("  (point)" if a == b else ""))
     click.echo(f"newton_iterations {eq.newton.iterations}")
     click.echo(f"residual_norm {eq.newton.residual_norm:.6g}")
 
@@ -524,13 +584,16 @@ def solve(gamma, phi, load_step, N, k, w, EI, GJ, EA, L):
               help="A B: the interval of --param (when it is not phi_L)")
 @click.option("--direction", type=click.Choice(["up", "down"]), default="up", show_default=True,
               help="which way the parameter goes first")
+@click.option("--conduit", type=click.Path(dir_okay=False), default=None,
+              help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
+                   "the rod stays inside it, touching its wall where it must")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error, max_defect,
           fold_error, forced, uniform, N_max, store_every, start, switch, from_straight, param, prange, direction,
-          out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
+          conduit, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
@@ -568,8 +631,11 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         _check_out(out, [data.path], overwrite)
         if _explicit("reference"):
             raise UserError("a restart keeps the start file's reference curve: drop --reference")
+        if conduit is not None:
+            raise UserError("a restart keeps the start file's conduit: drop --conduit")
         rod, T = data.rod, data.tension
         extra["curve"] = data.curve
+        extra["wall"] = data.wall
         k = int(data.attrs["k"])
         b = pt["breakpoints"]
         x0 = pt["x"]
@@ -604,7 +670,12 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
             raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
         gamma, T = _tension(gamma, rod)
         gamma = None
-        extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
+        if conduit is not None:
+            if from_straight is not None:
+                raise UserError("--from-straight is not available inside a conduit (trace from the sag)")
+            extra["curve"], extra["wall"] = _conduit(conduit, rod)
+        else:
+            extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
         if from_straight is not None:
             extra["from_straight"] = from_straight
             if param != "phi_L":
@@ -870,9 +941,13 @@ def shape(file, points, branch, output):
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: shapes are written as PNG (name it .png)")
     data = _load(file, branch)
-    model = EulerianRod(data.rod, data.curve)
-    curves = []
+    wall = data.wall
+    model = EulerianRod(data.rod, data.curve, wall)
+    curves, contacts = [], []
     S = np.linspace(*model.interval, 400)
+    # inside a conduit the deflections and the clearance are drawn magnified (else a thin pipe is a line)
+    magnify = 1.0 if wall is None else max(1.0, 0.12 * model.interval[1] / wall.clearance)
+    jet = model.curve.jet(S)
     for label in points:
         try:
             pt = data.point(label)
@@ -880,12 +955,28 @@ def shape(file, points, branch, output):
             raise UserError(str(exc)) from None
         disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
         r = model.centreline(disc, pt["x"], S)
+        if wall is not None:
+            r = jet.R + magnify * (r - jet.R)  # r - R = Delta1 K1 + Delta2 K2
+            p = model.params(float(pt["phi_L"]), T=data.tension)
+            pressure = model.contact(disc, pt["x"], p, S=S)["pressure"]
+            contacts.append(r[:, pressure >= wall.contact_level * model.contact_scale])
         curves.append((r, f"#{pt['index']}: Φ = {pt['phi_L']:.4f}, stretch = {pt['stretch']:.4f}"))
     from .plots import shape_figure
     if not all(np.all(np.isfinite(r)) and np.max(np.abs(r)) < 1e100 for r, _ in curves):
         raise UserError(f"{file}: the stored solution gives a centreline that is not finite")
+    title = f"{os.path.basename(file)}  (Γ = {data.gamma:g})"
+    tube = None
+    if wall is not None:
+        theta = np.linspace(0.0, 2 * np.pi, 25)
+        St = np.linspace(*model.interval, 121)
+        jt = model.curve.jet(St)
+        ring = magnify * wall.clearance * (jt.K[0][:, :, None] * np.cos(theta) + jt.K[1][:, :, None] * np.sin(theta))
+        tube = tuple(jt.R[a][:, None] + ring[a] for a in range(3))
+        title += f"\nconduit of clearance {wall.clearance:g}" + (
+            f"; deflections and clearance drawn ×{magnify:.3g}" if magnify > 1 else "")
     try:
-        shape_figure(curves, output, f"{os.path.basename(file)}  (Γ = {data.gamma:g})")
+        shape_figure(curves, output, title, reference=jet.R if not model.constant_frame or wall else None,
+                     tube=tube, contacts=contacts)
     except (ValueError, OverflowError) as exc:
         raise UserError(f"cannot draw: {exc}") from None
     except OSError as exc:

@@ -298,6 +298,13 @@ class ReferenceCurve:
             per *= 2
         return float(ang[-1])
 
+    def max_curvature(self, per_piece: int = 400) -> float:
+        """Largest curvature ``sqrt(k1^2 + k2^2)`` on a fine grid of each piece between breakpoints."""
+        b = self.breakpoints
+        S = np.unique(np.concatenate([np.linspace(b[i], b[i + 1], per_piece + 1) for i in range(b.size - 1)]))
+        k = self.jet(S).k
+        return float(np.max(np.hypot(k[0, 0], k[1, 0])))
+
     @property
     def curvature_jumps(self) -> np.ndarray:
         """Interior breakpoints where the curvature vector ``(k1, k2)`` jumps (a well's stations).

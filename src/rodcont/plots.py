@@ -114,14 +114,32 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
     return fig
 
 
-def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "") -> Figure:
-    """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales; returns the figure (saved to ``path``)."""
+def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "", reference=None,
+                 tube=None, contacts=()) -> Figure:
+    """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales; returns the figure (saved to ``path``).
+
+    ``reference``: the reference curve's points ``(3, n)`` (default: the straight
+    span along e1); ``tube``: the conduit's wall as three ``(n_S, n_theta)``
+    arrays, drawn translucent; ``contacts``: points ``(3, m)`` of each curve in
+    contact with the wall, drawn as red dots.
+    """
     fig = _figure(8, 5)
     ax = fig.add_subplot(projection="3d")
     allpts = np.concatenate([r for r, _ in curves], axis=1)
     for r, label in curves:
         ax.plot(r[0], r[1], r[2], lw=2, label=label)
-    ax.plot([allpts[0].min(), allpts[0].max()], [0, 0], [0, 0], "k--", lw=0.8, label="reference curve")
+    if reference is None:
+        ax.plot([allpts[0].min(), allpts[0].max()], [0, 0], [0, 0], "k--", lw=0.8, label="reference curve")
+    else:
+        ax.plot(reference[0], reference[1], reference[2], "k--", lw=0.8, label="reference curve")
+        allpts = np.concatenate([allpts, reference], axis=1)
+    if tube is not None:
+        ax.plot_surface(*tube, color="tab:gray", alpha=0.15, linewidth=0, shade=False)
+        allpts = np.concatenate([allpts, np.stack([t.ravel() for t in tube])], axis=1)
+    for i, pts in enumerate(contacts):
+        if pts.size:
+            ax.plot(pts[0], pts[1], pts[2], "o", color="tab:red", ms=2.5,
+                    label="in contact with the wall" if i == 0 else None)
     centre = 0.5 * (allpts.max(axis=1) + allpts.min(axis=1))
     half = 0.5 * float(np.max(allpts.max(axis=1) - allpts.min(axis=1)))
     for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):

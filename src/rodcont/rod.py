@@ -169,11 +169,22 @@ class EulerianRod:
     :attr:`rodcont.curves.ReferenceCurve.end_twist`).
     """
 
-    def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None):
+    def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None, wall=None):
         self.rod = rod or RodParameters()
         self.curve = curve or StraightReference(self.rod.L)
         if not isinstance(self.curve, ReferenceCurve):
             raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {self.curve!r}")
+        self.wall = wall
+        if wall is not None:
+            from .contact import Wall
+            if not isinstance(wall, Wall):
+                raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+            kmax = self.curve.max_curvature() if not self.curve.constant_frame else 0.0
+            if wall.clearance * kmax >= 1.0:
+                raise ValueError(f"the conduit overlaps itself: clearance {wall.clearance:g} times the largest "
+                                 f"curvature of its axis ({kmax:g}) must be below 1")
+            # fixed here, not read from the parameters: a trace in w or EI keeps one contact law
+            self.contact_scale = wall.scale(self.rod.w, self.rod.EI, self.rod.L)
         self.constant_frame = bool(self.curve.constant_frame)
         self.g = np.asarray(self.rod.weight_direction, float)
         if self.constant_frame:
@@ -206,6 +217,8 @@ class EulerianRod:
                               RuntimeWarning, stacklevel=2)
             interval = (0.0, float(self.curve.length))
             # with a turning frame Delta1, Delta2 enter through omega x Delta; phi still does not
+            unused = (Jet.PHI[0],)
+        if wall is not None:  # the contact force reads the deflection itself
             unused = (Jet.PHI[0],)
         self.interval = interval
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
@@ -257,6 +270,9 @@ class EulerianRod:
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EF = Fp + (w * n / alpha) * self.gK[:, None]
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
+        if self.wall is not None:
+            q1, q2 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale)
+            return np.stack([EF[0] + q1, EF[1] + q2, EF[2], EM[0], EM[1], mp / GJ])
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def bc(self, za, zb, p):
@@ -347,6 +363,9 @@ class EulerianRod:
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EF = Ft + (w * n / alpha) * gK
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
+        if self.wall is not None:
+            q1, q2 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale)
+            return np.stack([EF[0] + q1, EF[1] + q2, EF[2], EM[0], EM[1], mp / GJ])
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def _axial_curved(self, S, z, p):
@@ -437,6 +456,36 @@ class EulerianRod:
         if out is None or out.model is not self or out.samples != samples:
             out = disc._rod_outputs = _Outputs(self, disc, samples)
         return out
+
+    def contact(self, disc: Collocation, x: np.ndarray, p: np.ndarray, per_interval: int = 16,
+                S: np.ndarray | None = None) -> dict:
+        """Contact with the conduit wall on a grid of ``per_interval`` points per subinterval (or at ``S``).
+
+        Returns ``S``, ``gap = c - |Delta|``, ``pressure`` (the wall's force per
+        unit ``S``, :meth:`rodcont.contact.Wall.pressure`), the axial force
+        ``F.d3`` and the torque ``m`` there; ``zones`` (``(S_start, S_end, force)``,
+        :func:`rodcont.contact.contact_zones`), ``min_gap`` and ``side_force``
+        (the integral of the pressure over the span).
+        """
+        from .contact import contact_zones
+        if self.wall is None:
+            raise ValueError("this rod has no conduit wall")
+        if S is None:
+            b = disc.breakpoints
+            t = np.linspace(0.0, 1.0, per_interval + 1)[:-1]
+            S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
+        S = np.asarray(S, float)
+        z = (disc.jet_matrix(S) @ x).reshape(self.problem.jet_size, S.size)
+        D1, D2 = z[Jet.D1[0]], z[Jet.D2[0]]
+        c = self.wall.clearance
+        gap = c - np.hypot(D1, D2)
+        pressure = self.wall.pressure(D1, D2, self.contact_scale)
+        m, alpha, n, d3 = self._axial_quantities(S, z, p)
+        axial = _dot(z[Jet.F], d3)
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
+        return dict(S=S, gap=gap, pressure=pressure, axial_force=axial, torque=m,
+                    zones=contact_zones(S, pressure, self.wall.contact_level * self.contact_scale),
+                    min_gap=float(gap.min()), side_force=float(cum[-1]))
 
     def stretch_factor_min(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> float:
         """Smallest stretch factor ``alpha = 1 + F.d3/EA`` at the collocation points."""

@@ -46,7 +46,7 @@ class RodSystem:
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
-                 curve=None):
+                 curve=None, wall=None):
         if param not in SYSTEM_PARAMS:
             raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
         if T is None:
@@ -56,7 +56,8 @@ class RodSystem:
         if param == "gamma" and rod.w == 0:
             raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
         self.rod = rod
-        self.model = EulerianRod(rod, curve)
+        self.model = EulerianRod(rod, curve, wall)
+        self.wall = wall
         self.curve = self.model.curve
         self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
         self.base = self.model.params(phi_L, T=T)
@@ -111,6 +112,9 @@ class RodSystem:
                    defect=o["defect"], torque_spread=o["torque_spread"], alpha_min=o["alpha_min"])
         if self.param != "phi_L":
             out[self.param] = float(value)
+        if self.wall is not None:
+            c = self.model.contact(self.disc, x, p, per_interval=8)
+            out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]))
         return out
 
     def arclength_scale(self):
@@ -164,7 +168,8 @@ class RodSystem:
     def key(self) -> tuple:
         """What makes two systems the same discrete problem (for caches)."""
         return (tuple(self.base), self.param, self.disc.k, self.disc.breakpoints.tobytes(),
-                tuple(sorted(self.rod.as_dict().items())), getattr(self.curve, "spec", ""))
+                tuple(sorted(self.rod.as_dict().items())), getattr(self.curve, "spec", ""),
+                self.wall.spec if self.wall is not None else "")
 
 
 class RodSystem2:
@@ -235,12 +240,13 @@ def point_system(data, i) -> RodSystem:
     elif param == "gamma" and "gamma" in pt:
         T = float(pt["gamma"]) * rod.w * rod.L
     spec = str(data.attrs.get("reference", "straight"))
-    key = (tuple(sorted(rod.as_dict().items())), float(T), b.tobytes(), int(data.attrs["k"]), spec)
+    key = (tuple(sorted(rod.as_dict().items())), float(T), b.tobytes(), int(data.attrs["k"]), spec,
+           str(data.attrs.get("conduit", "")))
     if key not in _POINT_SYSTEMS:
         if len(_POINT_SYSTEMS) > 32:
             _POINT_SYSTEMS.clear()
         _POINT_SYSTEMS[key] = RodSystem(rod, T=T, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b,
-                                        curve=data.curve)
+                                        curve=data.curve, wall=data.wall)
     system = _POINT_SYSTEMS[key]
     if data.param == "phi_L" or "phi_L_fixed" not in data.attrs:
         return system

@@ -56,13 +56,47 @@ class Equilibrium:
     def converged(self) -> bool:
         return self.newton.converged
 
+    def contact(self) -> dict:
+        """Contact with the conduit wall (:meth:`rodcont.rod.EulerianRod.contact`)."""
+        sysm = self.system
+        return sysm.model.contact(sysm.disc, self.x, sysm.params(self.outputs["phi_L"]))
+
     def centreline(self, S=None):
         S = np.linspace(*self.system.model.interval, 201) if S is None else S
         return self.system.model.centreline(self.system.disc, self.x, S)
 
 
+def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+    """An equilibrium inside the conduit from a guess that may cross its wall: homotopy in the smoothing.
+
+    The contact law ``p (g + p/k) = mu`` (:mod:`rodcont.contact`) is solved
+    first with a soft wall (``eps = 0.1``), then with ``eps`` divided by 10 at
+    each stage down to the wall's own, each stage from the previous solution
+    (a stiff wall seen from a far-off guess stalls Newton's line search).
+    Returns the last stage's solution (the caller confirms it with Newton).
+    """
+    import dataclasses
+    model, wall = sysm.model, sysm.model.wall
+    stages = [0.1]
+    while stages[-1] / 10 > wall.eps:
+        stages.append(stages[-1] / 10)
+    stages.append(wall.eps)
+    try:
+        for eps in stages:
+            model.wall = dataclasses.replace(wall, eps=eps)
+            r = sysm.disc.newton(x, p, tol=tol, max_iter=60)
+            if not r.converged:
+                raise ConvergenceError(f"no equilibrium found inside the conduit (contact smoothing eps = "
+                                       f"{eps:g}): {r.message}")
+            x = r.x
+    finally:
+        model.wall = wall
+    return x
+
+
 def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
-                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None, curve=None) -> Equilibrium:
+                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None, curve=None,
+                      wall=None) -> Equilibrium:
     """Equilibrium at ``(gamma, phi_L)`` (or tension ``T``) reached by loading ``phi_L`` up from 0 in steps.
 
     A step that fails is halved (down to ``load_step / 1024``).
@@ -89,9 +123,11 @@ def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | No
     if not math.isfinite(T):
         raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
     check_tension(rod, T)
-    sysm = RodSystem(rod, T=T, N=N, k=k, curve=curve)
+    sysm = RodSystem(rod, T=T, N=N, k=k, curve=curve, wall=wall)
     with np.errstate(all="ignore"):
         x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
+        if wall is not None:
+            x = settle_in_conduit(sysm, x, sysm.params(0.0), tol)
         r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)
         if not r.converged:
             raise ConvergenceError(f"no equilibrium found at phi_L = 0 (T = {T:g}): {r.message}")

@@ -108,6 +108,9 @@ class TraceOptions:
 
 
 OPTION_NAMES = tuple(f.name for f in fields(TraceOptions))
+# branch-table columns of a trace inside a conduit (rodcont.contact): the narrowest gap c - |Delta|,
+# the integral of the wall force, the number of contact zones
+CONTACT_COLUMNS = ("min_gap", "side_force", "contact_zones")
 
 
 # --------------------------------------------------------------------------
@@ -477,7 +480,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
           T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
           start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
           breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
-          store_every: int = 1, curve=None, callback: Callable[[Point], None] | None = None,
+          store_every: int = 1, curve=None, wall=None, callback: Callable[[Point], None] | None = None,
           settings: ContinuationSettings | None = None, **options) -> Branch:
     """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
 
@@ -488,7 +491,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
     ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
     along the other branch. ``curve``: the reference curve
-    (:mod:`rodcont.curves`; default the straight span ``L e1``). ``store_every``: keep the solution (coefficients,
+    (:mod:`rodcont.curves`; default the straight span ``L e1``); ``wall``: a conduit
+    wall around it (:class:`rodcont.contact.Wall`; default none). ``store_every``: keep the solution (coefficients,
     tangent) of every ``store_every``-th point only, and of every special point
     and the last one (smaller files; the table keeps every point).
     ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
@@ -533,6 +537,12 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     if isinstance(curve, str):
         from ..curves import parse_reference
         curve = parse_reference(curve, rod.L)
+    if wall is not None:
+        from ..contact import Wall
+        if not isinstance(wall, Wall):
+            raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        if from_straight is not None:
+            raise ValueError("--from-straight is not available inside a conduit (trace from the sag instead)")
     if from_straight is not None:
         phi0 = check_number("from_straight", from_straight)
         if curve is not None and not getattr(curve, "constant_frame", False):
@@ -543,7 +553,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     elif start is not None:
         x0, p0, t0 = start
         system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
-                           breakpoints=breakpoints, curve=curve)
+                           breakpoints=breakpoints, curve=curve, wall=wall)
         x0 = np.asarray(x0, float)
         if x0.size != system.disc.size:
             raise ValueError("the start point does not fit this mesh (N, k)")
@@ -560,9 +570,16 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     else:
         if param != "phi_L":
             raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
-        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve)
+        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve, wall=wall)
         x0 = system.model.initial_guess(system.disc, system.base[1])
         p0 = 0.0
+        if wall is not None:
+            from .solve import ConvergenceError, settle_in_conduit
+            try:
+                with np.errstate(all="ignore"):
+                    x0 = settle_in_conduit(system, x0, system.params(p0))
+            except ConvergenceError as exc:
+                raise TraceError(str(exc)) from None
     branch = Branch(gamma=rod.gamma(T) if rod.w > 0 else math.nan, rod=rod, N=N, k=k, param=param)
     writer = group = None
     if out is not None:
@@ -572,7 +589,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
         if store_every < 1:
             raise ValueError(f"store_every must be >= 1, got {store_every}")
         writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta), store_every=store_every)
-        group = writer.group("/", extra_columns=(param,) if param != "phi_L" else ())
+        group = writer.group("/", extra_columns=((param,) if param != "phi_L" else ())
+                             + (CONTACT_COLUMNS if wall is not None else ()))
         _mesh_group(writer, system)
     recorder = Recorder(branch, writer, group)
     try:
@@ -584,8 +602,51 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
         raise
     finally:
         if writer is not None:
-            writer.close(branch.stop_reason or "interrupted")
+            try:
+                if wall is not None and len(branch):
+                    _contact_group(writer, branch, system)
+            finally:
+                writer.close(branch.stop_reason or "interrupted")
     return branch
+
+
+def _contact_group(writer, branch: Branch, system: RodSystem, samples: int = 201) -> None:
+    """``/contact``: the wall's clearance and law, the contact zones of every point and, on ``samples``
+    points of the span, the wall pressure, the gap, the axial force and the torque (written when the run
+    ends, also when it is interrupted; the branch table's min_gap, side_force, contact_zones go with each
+    point)."""
+    wall, model = system.wall, system.model
+    S_out = np.linspace(*model.interval, samples)
+    n = len(branch)
+    prof = {name: np.full((n, samples), np.nan, np.float32) for name in ("pressure", "gap", "axial_force", "torque")}
+    zones = []
+    cache: dict = {}
+    for i in range(n):
+        b = branch.meshes[i]
+        key = b.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = system.with_mesh(b)
+        sysm = cache[key]
+        value = branch.table[system.param][i] if system.param != "phi_L" else branch.table["phi_L"][i]
+        p = sysm.params(float(value))
+        x = branch.coefficients[i]
+        fine = model.contact(sysm.disc, x, p)
+        zones.extend((i, a, e, f) for a, e, f in fine["zones"])
+        at = model.contact(sysm.disc, x, p, S=S_out)
+        for name in prof:
+            prof[name][i] = at[name]
+    g = writer.f.require_group("contact")
+    for name in list(g):
+        del g[name]
+    g.attrs.update(clearance=wall.clearance, eps=wall.eps, force_scale=model.contact_scale,
+                   contact_level=wall.contact_level,
+                   law="p (g + p/k) = mu, g = (c^2 - |Delta|^2)/(2c), k = P/(eps c), mu = eps c P")
+    g.create_dataset("S", data=S_out)
+    for name, data in prof.items():
+        g.create_dataset(name, data=data, compression="gzip", chunks=(min(n, 64), samples))
+    g.create_dataset("zones", data=np.asarray(zones, float).reshape(-1, 4), compression="gzip")
+    g["zones"].attrs["columns"] = "point,S_start,S_end,force"
 
 
 def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: TraceOptions, system: RodSystem,
@@ -597,6 +658,7 @@ def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: Tr
                 weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=opts.min_alignment,
                 max_error=opts.max_error, phi_L_fixed=float(system.base[0]) if param != "phi_L" else math.nan,
                 reference=str(getattr(system.curve, "spec", "straight") or "straight"),
+                conduit=system.wall.spec if system.wall is not None else "",
                 settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float))
     if rod.w == 0:
         meta["gamma"] = math.nan

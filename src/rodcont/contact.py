@@ -1,0 +1,132 @@
+"""Unilateral contact with the wall of a conduit: a rod inside a tube around its reference curve.
+
+The conduit is the reference curve ``R(S)`` plus a constant clearance ``c``
+(radius of the conduit minus radius of the rod). In the Eulerian description
+the wall constraint is local in ``S``: the rod's centreline
+``r = R + Delta1 K1 + Delta2 K2`` must keep ``|Delta(S)| <= c``. The wall
+pushes with a normal force per unit reference length ``p(S) >= 0`` along
+``-Delta/|Delta|``, with ``p g = 0`` (no force across a gap). For a tube of
+constant radius the wall's normal at ``R(S) + c n`` is ``n`` itself, in the
+normal plane of ``S``, so the force acts in that plane and (frictionless,
+through the axis of the section) adds no moment.
+
+Complementarity, smoothed (the exact problem is the limit ``eps -> 0``).
+With the smooth gap ``g = (c^2 - |Delta|^2) / (2 c)`` (``= c - |Delta|`` at the
+wall, to second order) and a force scale ``P``::
+
+    p (g + p / k) = mu,     k = P / (eps c),   mu = eps c P,
+
+i.e. ``p = P (sqrt(gamma^2 + 4) - gamma) / 2`` with ``gamma = g / (eps c)``: a
+wall of compliance ``eps c / P`` seen through a barrier of strength
+``eps c P``. ``p`` is positive and smooth (analytic) for every ``Delta``;
+where ``p = P`` the rod sits exactly on the wall, a smaller force leaves a
+standoff ``~ eps c P / p``, a larger one a penetration ``~ eps c p / P``. Every
+deviation from the exact complementarity is of order ``eps``; the tests drive
+``eps`` down and check the limit against an independent solution of the
+exact contact problem (free spans glued to a contact zone, shooting). The
+force on the rod per unit ``S`` is ``q = -p Delta / c`` (``= -p Delta/|Delta|``
+at the wall; the smooth form has no singularity at ``Delta = 0``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Wall:
+    """A conduit wall at clearance ``c`` around the reference curve.
+
+    ``eps``: the relative smoothing of the contact law (module docstring);
+    deviations from exact contact are ``O(eps c)`` in the gap.
+    ``force_scale``: ``P``, the force per unit length at which the rod sits
+    exactly on the wall (default: the weight per unit length ``w``, or
+    ``EI c / L^4`` for a weightless rod). Any positive ``P`` gives the same
+    limit; one near the actual contact forces gives the smallest error.
+    ``contact_level``: a point is in contact where the wall pushes with at least
+    ``contact_level * P`` (reporting only: the equations do not use it). For
+    the default 1/2 that is where the gap is below ``1.5 eps c``: tied to the
+    law, so the zones converge with it. A rod leaves a wall with a cubic gap
+    (the shear force jumps at the edge of a contact), so a zone's ends
+    converge like ``eps^(1/3)``; the force on it converges like ``eps``.
+    """
+
+    clearance: float
+    eps: float = 1e-5
+    force_scale: float | None = None
+    contact_level: float = 0.5
+
+    def __post_init__(self):
+        for name in ("clearance", "eps", "contact_level"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(v) or not v > 0:
+                raise ValueError(f"conduit {name} must be a positive number, got {v!r}")
+        if not self.eps <= 0.1:
+            raise ValueError(f"conduit eps must be at most 0.1 (a relative smoothing), got {self.eps!r}")
+        P = self.force_scale
+        if P is not None and (isinstance(P, bool) or not isinstance(P, (int, float, np.integer, np.floating))
+                              or not math.isfinite(P) or not P > 0):
+            raise ValueError(f"conduit force_scale must be a positive number, got {P!r}")
+
+    def scale(self, w: float, EI: float, L: float) -> float:
+        """``P``: the given force scale, else ``w``, else ``EI c / L^4``."""
+        if self.force_scale is not None:
+            return float(self.force_scale)
+        return float(w) if w > 0 else float(EI) * self.clearance / float(L) ** 4
+
+    def pressure(self, D1, D2, P: float):
+        """Contact force per unit ``S``, ``p >= 0``, at deflections ``(D1, D2)`` (analytic: complex-step safe)."""
+        c = self.clearance
+        gamma = (c * c - (D1 * D1 + D2 * D2)) / (2.0 * c * self.eps * c)
+        root = np.sqrt(gamma * gamma + 4.0)
+        # the two forms of the same root of p^2/k + g p - mu = 0, each free of cancellation on its side
+        return np.where(np.real(gamma) > 0, (2.0 * P) / (root + gamma), 0.5 * P * (root - gamma))
+
+    def force(self, D1, D2, P: float):
+        """``q = -p Delta / c``: the wall's force per unit ``S`` on the rod, components on ``K1, K2``."""
+        f = -self.pressure(D1, D2, P) / self.clearance
+        return f * D1, f * D2
+
+    @property
+    def spec(self) -> str:
+        """A one-line description stored in branch files and compared on restart."""
+        s = f"clearance={self.clearance!r},eps={self.eps!r}"
+        if self.force_scale is not None:
+            s += f",force_scale={self.force_scale!r}"
+        if self.contact_level != 0.5:
+            s += f",contact_level={self.contact_level!r}"
+        return s
+
+    @classmethod
+    def from_spec(cls, spec: str) -> "Wall":
+        fields = {}
+        for part in str(spec).split(","):
+            key, _, val = part.partition("=")
+            fields[key.strip()] = float(val)
+        return cls(**fields)
+
+
+def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tuple[float, float, float]]:
+    """Contact zones ``(S_start, S_end, force)`` on a fine grid ``S``: runs where ``pressure >= level``.
+
+    ``force`` is the wall's resultant on the zone: the integral of ``p`` from
+    half-way to the previous zone (or the start) to half-way to the next one
+    (or the end). The smoothed law turns the point forces of the exact problem
+    (an isolated contact, the edge of a contact arc) into narrow peaks whose
+    flanks lie just outside the contact run; the force in the gaps between
+    zones is ``O(eps)``. A zone of a single grid point is a point contact
+    (``S_start == S_end``).
+    """
+    on = pressure >= level
+    if not on.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    runs = list(zip(edges[::2], edges[1::2] - 1))  # first and last grid index of each run
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
+    bounds = [0] + [(runs[i][1] + runs[i + 1][0]) // 2 for i in range(len(runs) - 1)] + [S.size - 1]
+    return [(float(S[a]), float(S[b]), float(cum[bounds[i + 1]] - cum[bounds[i]]))
+            for i, (a, b) in enumerate(runs)]

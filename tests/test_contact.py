@@ -1,0 +1,253 @@
+"""A rod inside a conduit (rodcont.contact): the contact law, its derivatives, the limit of exact contact
+against an independent solution, and the command line."""
+
+from __future__ import annotations
+
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import assert_tangent_matches_differences, run
+from rodcont.contact import Wall, contact_zones
+from rodcont.drivers.solve import solve_equilibrium
+from rodcont.rod import EulerianRod, RodParameters
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLES = os.path.join(ROOT, "examples")
+
+
+# --------------------------------------------------------------------------
+# The smoothed complementarity law
+# --------------------------------------------------------------------------
+@pytest.mark.parametrize("eps", [1e-2, 1e-6])
+def test_the_law_is_the_smoothed_complementarity_it_claims(eps):
+    """p (g + p/k) = mu with k = P/(eps c), mu = eps c P, on both sides of the wall; p > 0; p = P on the wall."""
+    c, P = 0.02, 7.0
+    wall = Wall(c, eps=eps)
+    r = np.linspace(0.0, 1.2 * c, 2001)
+    D1, D2 = r * np.cos(0.7), r * np.sin(0.7)
+    p = wall.pressure(D1, D2, P)
+    g = (c * c - r * r) / (2 * c)
+    k, mu = P / (eps * c), eps * c * P
+    assert np.all(p > 0)
+    # the positive root of p^2/k + g p - mu = 0 in 50-digit decimal arithmetic (no cancellation to fear)
+    from decimal import Decimal, getcontext
+    getcontext().prec = 50
+    K, MU = Decimal(k), Decimal(mu)
+    exact = []
+    for gi in g:
+        G = Decimal(float(gi))
+        exact.append(float((-G + (G * G + 4 * MU / K).sqrt()) * K / 2))
+    assert np.allclose(p, exact, rtol=1e-13, atol=0)
+    assert wall.pressure(np.array([c]), np.array([0.0]), P)[0] == pytest.approx(P, rel=1e-14)
+    # far from the wall the force is the barrier's O(eps); pressed in it grows like the penetration
+    assert p[0] == pytest.approx(2 * eps * P, rel=1e-3)
+    q1, q2 = wall.force(D1, D2, P)
+    assert np.allclose(np.hypot(q1, q2), p * r / c) and np.all(q1 * D1 + q2 * D2 <= 0)
+
+
+def test_the_law_is_analytic_so_the_complex_step_is_exact():
+    wall = Wall(0.01, eps=1e-4)
+    D = np.array([0.0, 0.004, 0.00999, 0.01, 0.01001, 0.012])
+    cs = wall.pressure(D + 1e-30j, 0.0 * D, 3.0).imag / 1e-30
+    # by hand: p = P (sqrt(gamma^2 + 4) - gamma) / 2, gamma = (c^2 - D^2) / (2 eps c^2)
+    gamma = (0.01**2 - D**2) / (2 * 1e-4 * 0.01**2)
+    root = np.sqrt(gamma**2 + 4)
+    dp_dgamma = 1.5 * np.where(gamma > 0, -4 / (root * (root + gamma)), gamma / root - 1)  # no cancellation
+    exact = dp_dgamma * (-D / (1e-4 * 0.01**2))
+    assert np.allclose(cs, exact, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("bad", [dict(clearance=0.0), dict(clearance=-1.0), dict(clearance=float("nan")),
+                                 dict(clearance=0.01, eps=0.0), dict(clearance=0.01, eps=0.5),
+                                 dict(clearance=0.01, force_scale=-2.0), dict(clearance="0.01")])
+def test_bad_walls_are_refused(bad):
+    with pytest.raises(ValueError):
+        Wall(**bad)
+
+
+def test_contact_zones_and_their_forces():
+    """Two runs of pressure above the level; each zone's force integrates the pressure up to half-way to its
+    neighbour."""
+    S = np.linspace(0.0, 1.0, 1001)
+    gap = np.where((S > 0.2) & (S < 0.3), 0.0, 0.01)
+    gap[700] = 0.0  # an isolated contact
+    pressure = np.where(gap == 0.0, 5.0, 0.0)
+    zones = contact_zones(S, pressure, 2.5)
+    assert len(zones) == 2
+    (a0, b0, f0), (a1, b1, f1) = zones
+    assert a0 == pytest.approx(0.201) and b0 == pytest.approx(0.299)
+    assert a1 == b1 == pytest.approx(0.7)
+    assert f0 == pytest.approx(5.0 * 0.098 + 2 * 0.5 * 5.0 * 0.001, rel=1e-9)  # trapezoid: run plus its flanks
+    assert f1 == pytest.approx(5.0 * 0.001, rel=1e-9)
+
+
+# --------------------------------------------------------------------------
+# The rod with a wall
+# --------------------------------------------------------------------------
+def _equilibrium(c, eps, N, phi=0.0, gamma=1.0):
+    return solve_equilibrium(gamma, phi, N=N, wall=Wall(c, eps=eps))
+
+
+@pytest.mark.parametrize("eps", [0.05, 1e-4])
+def test_tangent_with_the_wall_active_matches_differences(eps):
+    """The assembled Jacobian reads the deflection itself (the straight residual alone does not):
+    against central differences with a step well inside the law's length scale eps c."""
+    eq = _equilibrium(0.012, eps, 8)
+    sysm, x, p = eq.system, eq.x, eq.system.params(0.3)
+    assert eq.contact()["pressure"].max() > 5.0, "the wall must press for this test to mean anything"
+    if eps > 1e-2:
+        assert_tangent_matches_differences(sysm.disc, x, p, 1e-6)
+        return
+    J = sysm.disc.linearise(x, p)[1].toarray()
+    h = 1e-3 * eps * 0.012
+    Jfd = np.stack([(sysm.disc.residual(x + h * e, p) - sysm.disc.residual(x - h * e, p)) / (2 * h)
+                    for e in np.eye(x.size)], axis=1)
+    assert np.max(np.abs(J - Jfd)) < 1e-6 * np.max(np.abs(J))
+
+
+def test_a_wall_out_of_reach_changes_nothing_but_its_barrier():
+    """Clearance 10x the sag: the barrier's force ~ 2 eps P moves the solution by O(eps)."""
+    free = solve_equilibrium(1.0, 4.0, N=20)
+    for eps in (1e-4, 1e-6):
+        walled = solve_equilibrium(1.0, 4.0, N=20, wall=Wall(0.2, eps=eps))
+        d = abs(walled.outputs["stretch"] - free.outputs["stretch"]) / free.outputs["stretch"]
+        assert d < 10 * eps
+        assert walled.contact()["zones"] == []
+
+
+def test_a_curved_conduit_that_overlaps_itself_is_refused():
+    from rodcont.curves import parse_reference
+    with pytest.raises(ValueError, match="overlaps itself"):
+        EulerianRod(RodParameters(), parse_reference("arc:3.0", 1.0), Wall(0.6))
+
+
+# --------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["straight", "bump", "arc", "helix"])
+def test_every_example_conduit_solves_and_reports_its_contact(kind, capsys):
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--N", "20",
+                          "--conduit", os.path.join(EXAMPLES, f"conduit_{kind}.toml")], capsys)
+    assert code == 0, err
+    lines = dict(line.split(" ", 1) for line in out.splitlines() if line and not line.startswith("#"))
+    assert float(lines["side_force"]) > 0 and "contact" in lines
+    assert abs(float(lines["min_gap"])) < 1e-3 * 0.02  # touching (the law's O(eps c) standoff or penetration)
+
+
+def test_the_well_example_names_its_span(capsys):
+    code, out, err = run(["solve", "--T", "1e5", "--phi", "0", "--conduit",
+                          os.path.join(EXAMPLES, "conduit_well.toml")], capsys)
+    assert code == 2 and "give --L 973.07" in err
+
+
+@pytest.mark.parametrize("text, message", [
+    ("", "needs a [conduit] section"),
+    ("[conduit]\neps = 1e-5\n", "needs clearance"),
+    ("[conduit]\nclearance = -1\n", "clearance must be a positive number"),
+    ("[conduit]\nclearance = 0.01\nradius = 3\n", "unknown key(s) radius"),
+    ("[conduit]\nclearance = 0.01\nreference = 'nope:1'\n", "nope"),
+    ("[conduit\n", "not a TOML file"),
+])
+def test_bad_conduit_files_are_one_line_errors(tmp_path, capsys, text, message):
+    f = tmp_path / "c.toml"
+    f.write_text(text)
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
+    assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_missing_conduit_file(capsys, tmp_path):
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(tmp_path / "none.toml")], capsys)
+    assert code == 2 and "cannot read it" in err
+
+
+def test_a_trace_in_a_conduit_stores_it_and_a_restart_keeps_it(tmp_path, capsys):
+    conduit = os.path.join(EXAMPLES, "conduit_straight.toml")
+    out = tmp_path / "pipe.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "3", "--conduit", conduit, "--out", str(out),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    with h5py.File(out, "r") as f:
+        assert f.attrs["conduit"] == Wall(0.01, eps=1e-5).spec
+        g = f["branch"]
+        assert np.all(g["contact_zones"][:] >= 1) and np.all(np.abs(g["min_gap"][:]) < 1e-4)
+        phi_end, last = float(g["phi_L"][-1]), g["phi_L"].size - 1
+    code, _, err = run(["trace", "--start", f"{out}:0", "--conduit", conduit, "--out", str(tmp_path / "b.h5")],
+                       capsys)
+    assert code == 2 and "keeps the start file's conduit" in err
+    code, _, err = run(["trace", "--start", f"{out}:{last}", "--phi-max", "4",
+                        "--out", str(tmp_path / "b.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    with h5py.File(tmp_path / "b.h5", "r") as f:
+        assert f.attrs["conduit"] == Wall(0.01, eps=1e-5).spec
+        assert float(f["branch/phi_L"][-1]) > phi_end  # went on, inside the same pipe
+        assert np.all(f["branch/contact_zones"][:] >= 1)
+
+
+# --------------------------------------------------------------------------
+# The limit eps -> 0 against the exact contact problem, solved independently
+# (tests/contact_reference.py: Lagrangian shooting of free spans glued to the wall)
+# --------------------------------------------------------------------------
+def _sag_in_pipe(c, eps):
+    """The first point of a default trace (adapted mesh) of the Gamma = 1 rod in a straight pipe, Phi = 0:
+    its system, unknowns and contact report."""
+    import rodcont
+    from rodcont.system import RodSystem
+    wall = Wall(c, eps=eps)
+    b = rodcont.trace(1.0, wall=wall, phi_max=1e-3)
+    sysm = RodSystem(RodParameters(), gamma=1.0, breakpoints=b.meshes[0], wall=wall)
+    x = b.coefficients[0]
+    p = sysm.params(0.0)
+    out = sysm.outputs(x, 0.0)
+    disc = sysm.disc
+    alpha0 = 1.0 + disc.evaluate(x, np.array([0.0]), 5)[0] / RodParameters().EA
+    out["M0"] = RodParameters().EI * alpha0 * disc.evaluate(x, np.array([0.0]), 1, 2)[0]  # EI dtheta/ds0
+    return out, sysm.model.contact(disc, x, p)
+
+
+def test_a_rod_lying_on_the_pipe_converges_to_exact_contact():
+    """Flat contact (c = 0.005 < the clearance 0.00744 where the contact arc opens): stretch, clamp moment,
+    side force and the arc's ends converge to the shooting solution as eps -> 0; the clamp moment also
+    to the closed form M0 = -sqrt(2 EI w c) (a first integral of the free span, any T and EA)."""
+    from contact_reference import heavy_rod_on_flat_wall
+    c = 0.005
+    ref = heavy_rod_on_flat_wall(c, 10.0)
+    assert ref["regime"] == "flat"
+    assert ref["M0"] == pytest.approx(-np.sqrt(2 * 1.0 * 10.0 * c), rel=1e-10)
+    err = {}
+    for eps in (1e-3, 1e-4, 1e-5):
+        out, con = _sag_in_pipe(c, eps)
+        (a, b, force), = con["zones"]
+        assert a + b == pytest.approx(1.0, abs=1e-6)  # symmetric about the middle
+        err[eps] = dict(stretch=abs(out["stretch"] / ref["stretch"] - 1), M0=abs(out["M0"] / ref["M0"] - 1),
+                        side=abs(con["side_force"] / ref["total_side_force"] - 1), edge=ref["x_touchdown"] - a)
+    # O(eps) for the stretch and the clamp moment (measured 3.7e-3, 2.6e-4, 2.4e-5 and 4e-3, 4e-4, 6e-5)
+    assert err[1e-3]["stretch"] > 5 * err[1e-4]["stretch"] > 25 * err[1e-5]["stretch"]
+    assert err[1e-5]["stretch"] < 1e-4 and err[1e-5]["M0"] < 2e-4 and err[1e-4]["M0"] < 2e-3
+    assert err[1e-5]["side"] < 1e-3
+    # the arc's ends from inside, like eps^(1/3) (the rod leaves the wall with a cubic gap)
+    assert 0 < err[1e-5]["edge"] < err[1e-4]["edge"] / 1.5 < err[1e-3]["edge"] / 2.25
+    assert err[1e-5]["edge"] < 0.02
+
+
+def test_a_rod_touching_the_pipe_at_one_point_converges_to_exact_contact():
+    """Point contact (0.00744 < c = 0.012 < the onset 0.0195): one zone around the middle carrying the point
+    force; stretch and clamp moment converge (like eps^(2/3): the smoothed point force penetrates by
+    ~ eps^(2/3))."""
+    from contact_reference import heavy_rod_on_flat_wall
+    c = 0.012
+    ref = heavy_rod_on_flat_wall(c, 10.0)
+    assert ref["regime"] == "point"
+    err = {}
+    for eps in (1e-4, 1e-5, 1e-6):
+        out, con = _sag_in_pipe(c, eps)
+        (a, b, force), = con["zones"]
+        assert a < 0.5 < b and a + b == pytest.approx(1.0, abs=1e-6)
+        err[eps] = dict(stretch=abs(out["stretch"] / ref["stretch"] - 1), M0=abs(out["M0"] / ref["M0"] - 1),
+                        force=abs(force / ref["total_side_force"] - 1), width=b - a)
+    assert err[1e-4]["stretch"] > 3 * err[1e-5]["stretch"] > 9 * err[1e-6]["stretch"]
+    assert err[1e-5]["stretch"] < 1e-3 and err[1e-5]["M0"] < 1e-3
+    assert err[1e-5]["force"] < 2e-3
+    assert err[1e-6]["width"] < err[1e-4]["width"] / 3  # the zone shrinks toward the point
