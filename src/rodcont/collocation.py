@@ -23,7 +23,8 @@ derivative of each basis function at the collocation points::
 The pointwise derivatives ``dG/dz`` are obtained by the complex step
 ``Im G(z + i h e_j) / h`` with ``h = 1e-30`` (exact to rounding for analytic
 ``G``), all jet components and all points in one vectorised call; its real
-part is ``G`` itself. Which jet components and parameters the residual uses
+part is ``G`` itself (a problem may supply its own exact ``jacobian`` instead,
+see :class:`BVProblem`). Which jet components and parameters the residual uses
 is *declared* by the problem (default: all of them), never guessed from
 samples: a sampled probe misses a term that vanishes where it looked (a
 switching term, a contact force). The boundary conditions are differentiated
@@ -80,6 +81,12 @@ class BVProblem:
     all); ``residual_params``: the parameters it depends on (default: all).
     Declaring fewer saves work; a wrong declaration gives a wrong Jacobian,
     which ``tests`` check against the complex step of everything.
+    ``jacobian`` (optional): ``jacobian(S, z, p) -> (G, dG)``, the residual and
+    its exact derivatives with respect to the declared jet components
+    (``(n, na, npts)``, components in increasing order), for a problem that
+    can compute them more cheaply than the complex step of ``residual``
+    (which is used when it is absent). It must agree with that complex step
+    to rounding (the problem's own tests check it).
     """
 
     orders: Sequence[int]
@@ -91,6 +98,7 @@ class BVProblem:
     names: Sequence[str] | None = None
     jet_dependence: Sequence[int] | None = None
     residual_params: Sequence[int] | None = None
+    jacobian: Callable | None = None
 
     @property
     def n_fields(self) -> int:
@@ -263,7 +271,8 @@ class Collocation:
 
     # ---- pointwise derivatives --------------------------------------------------
     def _pointwise_jacobian(self, S, z, p, active):
-        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points.
+        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points (or the
+        problem's own ``jacobian``, for the declared components).
 
         Copy 0 of the batch is unperturbed: a nonzero imaginary part there means
         the residual left its real domain (log or sqrt of a negative number),
@@ -271,6 +280,13 @@ class Collocation:
         then NaN, as the real residual is.
         """
         nz, npts, na = z.shape[0], z.shape[1], len(active)
+        if self.problem.jacobian is not None and active is self.active:
+            G, dG = self.problem.jacobian(S, z, p)
+            n = self.problem.n_fields
+            if np.shape(G) != (n, npts) or np.shape(dG) != (n, na, npts):
+                raise ValueError(f"the jacobian must return G of shape {(n, npts)} and dG of shape {(n, na, npts)}, "
+                                 f"got {np.shape(G)} and {np.shape(dG)}")
+            return G, dG
         nb = na + 1
         Zc = np.tile(z.astype(complex), (1, nb))
         Zc.reshape(nz, nb, npts)[active, np.arange(1, nb), :] += 1j * COMPLEX_STEP
