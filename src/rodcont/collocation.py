@@ -441,36 +441,44 @@ class Collocation:
         (derivative ``j`` weighted by ``h_min^j``) at the Gauss points of both
         meshes: the residual involves the highest derivatives, so matching
         values alone is not enough on a graded mesh. Exact when ``x`` lies in
-        this mesh's spaces.
+        this mesh's spaces. The matrices are built once per source (a remesh
+        carries a solution and its tangent over).
         """
+        cached = getattr(self, "_transfer_from", None)
+        if cached is None or cached[0] is not source:
+            cached = self._transfer_from = (source, self._transfer_parts(source))
+        out = np.zeros(self.size)
+        for i, (m, At, AtA, svals, scols, w) in enumerate(cached[1]):
+            c = x[source.index[i]]
+            rhs = (np.einsum("nqa,qa->nq", svals, c[scols]) * w[:, None]).ravel()
+            out[self.index[i]] = spla.spsolve(AtA, At @ rhs)
+        if self.n_free:
+            out[self.free_index] = x[source.free_index]
+        return out
+
+    def _transfer_parts(self, source: "Collocation") -> list:
         b = self.breakpoints
         S = np.union1d(np.union1d(gauss_points(b, min(self.k + 3, 10))[0], b),
                        gauss_points(source.breakpoints, min(source.k + 3, 10))[0])
         hmin = float(np.min(np.diff(b)))
         npts = S.size
-        mine, theirs = {}, {}
-        out = np.zeros(self.size)
+        per_order, parts = {}, []
         for i, m in enumerate(self.problem.orders):
-            if m not in mine:
-                mine[m] = self.spaces[i].local(S, m)
-                theirs[m] = source.spaces[i].local(S, m)
-            vals, first = mine[m]
-            svals, sfirst = theirs[m]
-            order = self.spaces[i].order
-            c = x[source.index[i]]
-            w = hmin ** np.arange(m + 1)
-            # rows: (nu, point); columns: this field's coefficients
-            rows = np.repeat(np.arange((m + 1) * npts), order)
-            cols = np.tile((first[:, None] + np.arange(order)[None, :]).ravel(), m + 1)
-            data = (vals[:m + 1] * w[:, None, None]).ravel()
-            A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
-            scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
-            rhs = (np.einsum("nqa,qa->nq", svals[:m + 1], c[scols]) * w[:, None]).ravel()
-            At = A.T.tocsr()
-            out[self.index[i]] = spla.spsolve((At @ A).tocsc(), At @ rhs)
-        if self.n_free:
-            out[self.free_index] = x[source.free_index]
-        return out
+            if m not in per_order:
+                vals, first = self.spaces[i].local(S, m)
+                svals, sfirst = source.spaces[i].local(S, m)
+                order = self.spaces[i].order
+                w = hmin ** np.arange(m + 1)
+                # rows: (nu, point); columns: this field's coefficients
+                rows = np.repeat(np.arange((m + 1) * npts), order)
+                cols = np.tile((first[:, None] + np.arange(order)[None, :]).ravel(), m + 1)
+                data = (vals[:m + 1] * w[:, None, None]).ravel()
+                A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
+                scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
+                At = A.T.tocsr()
+                per_order[m] = (m, At, (At @ A).tocsc(), svals[:m + 1], scols, w)
+            parts.append(per_order[m])
+        return parts
 
     def integrate(self, values: np.ndarray) -> float:
         """Gauss rule of the mesh applied to values at the collocation points."""
