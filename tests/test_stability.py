@@ -95,7 +95,9 @@ def test_dense_and_arnoldi_agree(gamma1, gamma0, spectra):
             a, d = spectra[g][i], dense[j]
             assert (a.unstable, a.null) == (d.unstable, d.null), (g, i)
             near = a.nearest[:4]
-            assert np.allclose(near, d.nearest[:4], rtol=1e-7, atol=1e-7), (g, i)
+            # rtol 1e-6: on the Gamma = 0 branch a close pair near -1520 moves by 5e-8 (dense) and 4e-7 (Arnoldi)
+            # of its size when the Jacobian changes by rounding only (complex-step against analytic dG/dz)
+            assert np.allclose(near, d.nearest[:4], rtol=1e-6, atol=1e-7), (g, i)
 
 
 def test_count_does_not_depend_on_the_inertia(gamma1, gamma0, spectra):

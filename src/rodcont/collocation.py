@@ -23,7 +23,8 @@ derivative of each basis function at the collocation points::
 The pointwise derivatives ``dG/dz`` are obtained by the complex step
 ``Im G(z + i h e_j) / h`` with ``h = 1e-30`` (exact to rounding for analytic
 ``G``), all jet components and all points in one vectorised call; its real
-part is ``G`` itself. Which jet components and parameters the residual uses
+part is ``G`` itself (a problem may supply its own exact ``jacobian`` instead,
+see :class:`BVProblem`). Which jet components and parameters the residual uses
 is *declared* by the problem (default: all of them), never guessed from
 samples: a sampled probe misses a term that vanishes where it looked (a
 switching term, a contact force). The boundary conditions are differentiated
@@ -80,6 +81,12 @@ class BVProblem:
     all); ``residual_params``: the parameters it depends on (default: all).
     Declaring fewer saves work; a wrong declaration gives a wrong Jacobian,
     which ``tests`` check against the complex step of everything.
+    ``jacobian`` (optional): ``jacobian(S, z, p) -> (G, dG)``, the residual and
+    its exact derivatives with respect to the declared jet components
+    (``(n, na, npts)``, components in increasing order), for a problem that
+    can compute them more cheaply than the complex step of ``residual``
+    (which is used when it is absent). It must agree with that complex step
+    to rounding (the problem's own tests check it).
     """
 
     orders: Sequence[int]
@@ -91,6 +98,7 @@ class BVProblem:
     names: Sequence[str] | None = None
     jet_dependence: Sequence[int] | None = None
     residual_params: Sequence[int] | None = None
+    jacobian: Callable | None = None
 
     @property
     def n_fields(self) -> int:
@@ -263,7 +271,8 @@ class Collocation:
 
     # ---- pointwise derivatives --------------------------------------------------
     def _pointwise_jacobian(self, S, z, p, active):
-        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points.
+        """``G`` and ``dG/dz_j`` for ``j`` in ``active``: one complex call over all points (or the
+        problem's own ``jacobian``, for the declared components).
 
         Copy 0 of the batch is unperturbed: a nonzero imaginary part there means
         the residual left its real domain (log or sqrt of a negative number),
@@ -271,6 +280,13 @@ class Collocation:
         then NaN, as the real residual is.
         """
         nz, npts, na = z.shape[0], z.shape[1], len(active)
+        if self.problem.jacobian is not None and active is self.active:
+            G, dG = self.problem.jacobian(S, z, p)
+            n = self.problem.n_fields
+            if np.shape(G) != (n, npts) or np.shape(dG) != (n, na, npts):
+                raise ValueError(f"the jacobian must return G of shape {(n, npts)} and dG of shape {(n, na, npts)}, "
+                                 f"got {np.shape(G)} and {np.shape(dG)}")
+            return G, dG
         nb = na + 1
         Zc = np.tile(z.astype(complex), (1, nb))
         Zc.reshape(nz, nb, npts)[active, np.arange(1, nb), :] += 1j * COMPLEX_STEP
@@ -425,36 +441,44 @@ class Collocation:
         (derivative ``j`` weighted by ``h_min^j``) at the Gauss points of both
         meshes: the residual involves the highest derivatives, so matching
         values alone is not enough on a graded mesh. Exact when ``x`` lies in
-        this mesh's spaces.
+        this mesh's spaces. The matrices are built once per source (a remesh
+        carries a solution and its tangent over).
         """
+        cached = getattr(self, "_transfer_from", None)
+        if cached is None or cached[0] is not source:
+            cached = self._transfer_from = (source, self._transfer_parts(source))
+        out = np.zeros(self.size)
+        for i, (m, At, AtA, svals, scols, w) in enumerate(cached[1]):
+            c = x[source.index[i]]
+            rhs = (np.einsum("nqa,qa->nq", svals, c[scols]) * w[:, None]).ravel()
+            out[self.index[i]] = spla.spsolve(AtA, At @ rhs)
+        if self.n_free:
+            out[self.free_index] = x[source.free_index]
+        return out
+
+    def _transfer_parts(self, source: "Collocation") -> list:
         b = self.breakpoints
         S = np.union1d(np.union1d(gauss_points(b, min(self.k + 3, 10))[0], b),
                        gauss_points(source.breakpoints, min(source.k + 3, 10))[0])
         hmin = float(np.min(np.diff(b)))
         npts = S.size
-        mine, theirs = {}, {}
-        out = np.zeros(self.size)
+        per_order, parts = {}, []
         for i, m in enumerate(self.problem.orders):
-            if m not in mine:
-                mine[m] = self.spaces[i].local(S, m)
-                theirs[m] = source.spaces[i].local(S, m)
-            vals, first = mine[m]
-            svals, sfirst = theirs[m]
-            order = self.spaces[i].order
-            c = x[source.index[i]]
-            w = hmin ** np.arange(m + 1)
-            # rows: (nu, point); columns: this field's coefficients
-            rows = np.repeat(np.arange((m + 1) * npts), order)
-            cols = np.tile((first[:, None] + np.arange(order)[None, :]).ravel(), m + 1)
-            data = (vals[:m + 1] * w[:, None, None]).ravel()
-            A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
-            scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
-            rhs = (np.einsum("nqa,qa->nq", svals[:m + 1], c[scols]) * w[:, None]).ravel()
-            At = A.T.tocsr()
-            out[self.index[i]] = spla.spsolve((At @ A).tocsc(), At @ rhs)
-        if self.n_free:
-            out[self.free_index] = x[source.free_index]
-        return out
+            if m not in per_order:
+                vals, first = self.spaces[i].local(S, m)
+                svals, sfirst = source.spaces[i].local(S, m)
+                order = self.spaces[i].order
+                w = hmin ** np.arange(m + 1)
+                # rows: (nu, point); columns: this field's coefficients
+                rows = np.repeat(np.arange((m + 1) * npts), order)
+                cols = np.tile((first[:, None] + np.arange(order)[None, :]).ravel(), m + 1)
+                data = (vals[:m + 1] * w[:, None, None]).ravel()
+                A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
+                scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
+                At = A.T.tocsr()
+                per_order[m] = (m, At, (At @ A).tocsc(), svals[:m + 1], scols, w)
+            parts.append(per_order[m])
+        return parts
 
     def integrate(self, values: np.ndarray) -> float:
         """Gauss rule of the mesh applied to values at the collocation points."""

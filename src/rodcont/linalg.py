@@ -198,7 +198,11 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
     or when quadratic convergence predicts the next one is
     (``|dx_k|^2 / |dx_{k-1}| <= tol * (1 + |x|)`` with ``|dx_k| < |dx_{k-1}| / 4``),
     which saves the last, confirming, iteration; the residual at the result
-    must not exceed the one before the step (beyond rounding). ``lu`` in the
+    must not exceed the one before the step (beyond rounding). A full step
+    below ``sqrt(tol) * (1 + |x|)`` is taken without a line search as long as
+    the residual stays within ten times its size (it is at its rounding level:
+    a nearly converged start, such as a stored solution on a slightly
+    different problem, would otherwise fail on noise). ``lu`` in the
     result is the factorisation of the last Jacobian used (one step before ``x``).
     """
     x = np.array(x0, dtype=float)
@@ -228,7 +232,9 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
                 return NewtonResult(x + dx, True, it, fdone, step, "converged", lu, corrections)
         Ft, Jt = linearise(x + dx)
         ft, lam = max_norm(Ft), 1.0
-        while not (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor):
+        # a full step this small only moves rounding (as at convergence above): the residual may not fall
+        tiny = step <= math.sqrt(tol) * (1 + max_norm(x)) and np.isfinite(ft) and ft <= 10.0 * fnorm + floor
+        while not (tiny or (np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor)):
             lam *= 0.5
             if lam < min_damping:
                 return NewtonResult(x, False, it, fnorm, step, "line search failed: the residual does not decrease")

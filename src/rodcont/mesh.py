@@ -144,15 +144,25 @@ class ErrorEstimator:
 
 def _embedding(coarse, fine):
     """``x_coarse -> x_fine`` for nested spline spaces: least squares at ``k + m`` Gauss points
-    per fine subinterval (exact, the coarse function lies in the fine space), factorised once."""
+    per fine subinterval (exact, the coarse function lies in the fine space), factorised once
+    per field order (the fields of one order share their points and normal equations)."""
+    import scipy.sparse as sp
     import scipy.sparse.linalg as spla
     from .bspline import gauss_points
-    solvers = []
+    per_order, solvers = {}, []
     for i, m in enumerate(coarse.problem.orders):
-        pts = gauss_points(fine.breakpoints, fine.k + m)[0]
-        A = fine.spaces[i].matrix(pts)
-        B = coarse.evaluation_matrix(pts, i)
-        solvers.append((spla.splu((A.T @ A).tocsc()), (A.T @ B).tocsr(), fine.index[i]))
+        if m not in per_order:
+            pts = gauss_points(fine.breakpoints, fine.k + m)[0]
+            A = fine.spaces[i].matrix(pts)
+            vals, first = coarse.spaces[i].local(pts, 0)
+            per_order[m] = (A.T, spla.splu((A.T @ A).tocsc()), vals[0].ravel(), first, pts.size)
+        At, lu, bvals, first, npts = per_order[m]
+        order = coarse.spaces[i].order
+        # coarse.evaluation_matrix(pts, i), from the values shared by the fields of this order
+        B = sp.csr_matrix((bvals, (np.repeat(np.arange(npts), order),
+                                   coarse.index[i][first[:, None] + np.arange(order)[None, :]].ravel())),
+                          shape=(npts, coarse.size))
+        solvers.append((lu, (At @ B).tocsr(), fine.index[i]))
 
     def carry(x):
         out = np.zeros(fine.size)

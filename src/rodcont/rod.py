@@ -98,6 +98,44 @@ def _cross2(a, b):
     return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2]])
 
 
+# Tangent helpers for :meth:`EulerianRod.jacobian`: ``dA`` is ``(seeds, 3, npts)`` (or broadcasts to it),
+# ``B`` a ``(3, npts)`` vector; the result carries the seed axis first.
+def _tdot(dA, B):
+    return dA[:, 0] * B[0] + dA[:, 1] * B[1] + dA[:, 2] * B[2]
+
+
+def _seeded_dot(*pairs):
+    """``sum_j dr^(j) . X_j`` along the six seeds for pairs ``(j, X_j)`` (``dr^(j)`` is a unit vector on
+    two seeds of its own: no products needed)."""
+    out = np.zeros((6,) + pairs[0][1].shape[1:])
+    for j, X in pairs:
+        out[j - 1] = X[0]
+        out[j + 2] = X[1]
+    return out
+
+
+def _seeded_cross(*pairs):
+    """``sum_j dr^(j) x X_j`` along the six seeds (``e1 x X = (0, -X2, X1)``, ``e2 x X = (X2, 0, -X0)``)."""
+    X0 = pairs[0][1]
+    out = np.zeros((6,) + X0.shape)
+    for j, X in pairs:
+        out[j - 1, 1] = -X[2]
+        out[j - 1, 2] = X[1]
+        out[j + 2, 0] = X[2]
+        out[j + 2, 2] = -X[0]
+    return out
+
+
+# The geometric seeds of the straight-reference Jacobian (increasing jet order): the first three
+# derivatives of Delta1, then of Delta2; _SEED_R[j - 1] is the tangent of the j-th derivative of r
+# (frame components) along each seed, (6, 3, 1): seed j - 1 moves its first component, seed j + 2 its second.
+_SEED_JETS = (Jet.D1[1], Jet.D1[2], Jet.D1[3], Jet.D2[1], Jet.D2[2], Jet.D2[3])
+_SEED_R = np.zeros((3, 6, 3, 1))
+for _s, (_order, _comp) in enumerate(((1, 0), (2, 0), (3, 0), (1, 1), (2, 1), (3, 1))):
+    _SEED_R[_order - 1, _s, _comp, 0] = 1.0
+del _s, _order, _comp
+
+
 # --------------------------------------------------------------------------
 # Rod parameters
 # --------------------------------------------------------------------------
@@ -224,7 +262,11 @@ class EulerianRod:
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
                                  interval=interval, params=PARAMS, names=FIELDS,
                                  jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
-                                 residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")])
+                                 residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")],
+                                 jacobian=self.jacobian if self.constant_frame else None)
+        self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
+        self._jet_pos = np.full(Jet.SIZE, -1)
+        self._jet_pos[self._active] = np.arange(self._active.size)
 
     def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
         r = self.rod
@@ -239,10 +281,11 @@ class EulerianRod:
     def _frame_jets(self, z):
         """First three S-derivatives of ``r`` in frame components, each ``(3, npts)``."""
         D1, D2 = Jet.D1, Jet.D2
-        one = np.ones_like(z[0])
-        zero = np.zeros_like(z[0])
-        return (np.stack([z[D1[1]], z[D2[1]], one]), np.stack([z[D1[2]], z[D2[2]], zero]),
-                np.stack([z[D1[3]], z[D2[3]], zero]))
+        r = np.zeros((3, 3) + z.shape[1:], dtype=z.dtype)  # r[j - 1] = r^(j)
+        r[:, 0] = z[D1[1]:D1[3] + 1]
+        r[:, 1] = z[D2[1]:D2[3] + 1]
+        r[0, 2] = 1.0
+        return r[0], r[1], r[2]
 
     def residual(self, S, z, p):
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
@@ -274,6 +317,119 @@ class EulerianRod:
             q1, q2 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale)
             return np.stack([EF[0] + q1, EF[1] + q2, EF[2], EM[0], EM[1], mp / GJ])
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+
+    def jacobian(self, S, z, p):
+        """The residual and its exact derivatives w.r.t. the jet (constant frame only), by hand.
+
+        Returns ``(G, dG)``: ``G`` as :meth:`residual`, ``dG`` ``(6, na, npts)`` the derivatives
+        w.r.t. the jet components of ``problem.jet_dependence`` (sorted). Forward-mode chain rule:
+        the geometric quantities (``n, d3, d3', d3''``, ...) carry tangents along the six seeds
+        ``Delta1', Delta1'', Delta1''', Delta2', Delta2'', Delta2'''`` (axis 0); the force and twist
+        enter linearly (or bilinearly) and are differentiated in closed form. Checked against the
+        complex step of :meth:`residual` in ``tests/test_collocation.py``.
+        """
+        phi_L, T, w, EI, GJ, EA = p
+        r1, r2, r3 = self._frame_jets(z)
+        F = z[Jet.F]
+        Fp = z[Jet.FP]
+        phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
+        n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
+        dr1, dr2, dr3 = _SEED_R
+        # tangents along the geometric seeds: (6, npts) scalars, (6, 3, npts) vectors
+        dn = _seeded_dot((1, d3))
+        dn2 = 2.0 * n * dn
+        dd3 = (dr1 - d3 * dn[:, None]) / n
+        dc = _seeded_dot((1, r2), (2, r1))
+        d3r2 = c / n
+        dd3r2 = _tdot(dd3, r2) + _seeded_dot((2, d3))
+        e = r2 - d3 * d3r2
+        de = dr2 - dd3 * d3r2 - d3 * dd3r2[:, None]
+        dd3p = (de - d3p * dn[:, None]) / n
+        dn3 = 3.0 * n2 * dn
+        t1 = _dot(d3p, r2) + _dot(d3, r3)
+        dt1 = _tdot(dd3p, r2) + _tdot(dd3, r3) + _seeded_dot((2, d3p), (3, d3))
+        q = r3 - d3p * d3r2 - d3 * t1
+        dq = dr3 - dd3p * d3r2 - d3p * dd3r2[:, None] - dd3 * t1 - d3 * dt1[:, None]
+        ec = e * (c / n3)
+        dd3pp = (dq - (q / n) * dn[:, None]) / n - (de * c + e * dc[:, None] - ec * dn3[:, None]) / n3
+        bend = _cross(r1, r2)
+        dbend = _seeded_cross((1, r2), (2, -r1))
+        r13 = _cross(r1, r3)
+        dr13 = _seeded_cross((1, r3), (3, -r1))
+        # force-dependent scalars and their derivatives (geometric tangents; d/dF_i, d/dFp_i)
+        alpha = 1.0 + _dot(F, d3) / EA
+        dalpha = _tdot(dd3, F) / EA
+        alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
+        dalphap = (_tdot(dd3, Fp) + _tdot(dd3p, F)) / EA
+        K = c / n2
+        dK = dc / n2 - (c / n2**2) * dn2
+        W = r13 - 3.0 * K * bend
+        dW = dr13 - 3.0 * (dK[:, None] * bend + K * dbend)
+        uperp_p = (alphap * bend + alpha * W) / n3
+        duperp = (dalphap[:, None] * bend + alphap * dbend + dalpha[:, None] * W + alpha * dW
+                  - uperp_p * dn3[:, None]) / n3
+        J1 = alpha / n
+        dJ1 = dalpha / n - (alpha / n2) * dn
+        J1p = alphap / n - alpha * c / n3
+        dJ1p = (dalphap / n - (alphap / n2) * dn - (dalpha * c + alpha * dc) / n3
+                + (alpha * c / n3**2) * dn3)
+        pd = 1.0 + d3[2]
+        dpd = dd3[:, 2]
+        pxd = d3[0] * d3p[1] - d3[1] * d3p[0]
+        dpxd = dd3[:, 0] * d3p[1] + d3[0] * dd3p[:, 1] - dd3[:, 1] * d3p[0] - d3[1] * dd3p[:, 0]
+        tau = -pxd / pd
+        dtau = -dpxd / pd + (pxd / pd**2) * dpd
+        X = d3[0] * d3pp[1] - d3[1] * d3pp[0]
+        dX = dd3[:, 0] * d3pp[1] + d3[0] * dd3pp[:, 1] - dd3[:, 1] * d3pp[0] - d3[1] * dd3pp[:, 0]
+        taup = -X / pd + pxd * d3p[2] / pd**2
+        dtaup = (-dX / pd + (X / pd**2) * dpd + (dpxd * d3p[2] + pxd * dd3p[:, 2]) / pd**2
+                 - (2.0 * pxd * d3p[2] / pd**3) * dpd)
+        twist = phi1 + tau
+        ptw = phi2 + taup
+        m = GJ * J1 * twist
+        dm = GJ * (dJ1 * twist + J1 * dtau)
+        mp = GJ * (J1p * twist + J1 * ptw)
+        dmp = GJ * (dJ1p * twist + J1p * dtau + dJ1 * ptw + J1 * dtaup)
+        gK = self.gK[:, None]
+        EF = Fp + (w * n / alpha) * gK
+        EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
+        G = np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+
+        npts = n.shape[-1]
+        pos = self._jet_pos  # jet component -> column of dG
+        out = np.zeros((6, self._active.size, npts))
+        geo = np.empty((6, 6, npts))  # (equation, seed, point)
+        geo[:3] = (w / alpha)[None, None] * (dn - (n / alpha) * dalpha)[None] * gK[:, None]
+        geo[3:5] = (EI * duperp[:, :2] + dm[:, None] * d3p[:2] + m * dd3p[:, :2] + dmp[:, None] * d3[:2]
+                    + mp * dd3[:, :2] + _seeded_cross((1, F))[:, :2]).transpose(1, 0, 2)
+        geo[5] = dmp / GJ
+        out[:, pos[list(_SEED_JETS)]] = geo
+        # twist rate and its derivative: m = GJ J1 (phi' + tau), mp = GJ (J1p (phi' + tau) + J1 (phi'' + tau'))
+        out[3:5, pos[Jet.PHI[1]]] = GJ * (J1 * d3p[:2] + J1p * d3[:2])
+        out[5, pos[Jet.PHI[1]]] = J1p
+        out[3:5, pos[Jet.PHI[2]]] = GJ * J1 * d3[:2]
+        out[5, pos[Jet.PHI[2]]] = J1
+        # force components (index i first): alpha_F = d3 / EA, alphap_F = d3' / EA, alphap_Fp = d3 / EA
+        aF, apF = d3 / EA, d3p / EA
+        J1F = aF / n
+        J1pF = apF / n - aF * (c / n3)
+        mF = GJ * J1F * twist
+        mpF = GJ * (J1pF * twist + J1F * ptw)
+        mpFp = GJ * J1F * twist
+        jF, jFp = pos[Jet.F], pos[Jet.FP]
+        out[:3, jF] = gK[:, None] * (-(w * n / alpha**2) * aF)[None]  # d(w n / alpha)/dF_i
+        out[[0, 1, 2], jFp] = 1.0
+        out[3:5, jF] = (EI * (apF[:, None] * bend[:2] + aF[:, None] * W[:2]) / n3
+                        + mF[:, None] * d3p[:2] + mpF[:, None] * d3[:2]).transpose(1, 0, 2)
+        out[5, jF] = mpF / GJ
+        out[3:5, jFp] = (EI * aF[:, None] * bend[:2] / n3 + mpFp[:, None] * d3[:2]).transpose(1, 0, 2)
+        out[5, jFp] = mpFp / GJ
+        # r' x F: first two components (r'[1] F2 - r'[2] F1, r'[2] F0 - r'[0] F2)
+        out[3, jF[1]] -= r1[2]
+        out[3, jF[2]] += r1[1]
+        out[4, jF[0]] += r1[2]
+        out[4, jF[2]] -= r1[0]
+        return G, out
 
     def bc(self, za, zb, p):
         """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta``
