@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import assert_tangent_matches_differences, run
+from conftest import assert_picture, assert_tangent_matches_differences, run
 from rodcont.contact import Wall, contact_zones
 from rodcont.drivers.solve import solve_equilibrium
 from rodcont.rod import EulerianRod, RodParameters
@@ -251,3 +251,136 @@ def test_a_rod_touching_the_pipe_at_one_point_converges_to_exact_contact():
     assert err[1e-5]["stretch"] < 1e-3 and err[1e-5]["M0"] < 1e-3
     assert err[1e-5]["force"] < 2e-3
     assert err[1e-6]["width"] < err[1e-4]["width"] / 3  # the zone shrinks toward the point
+
+
+# --------------------------------------------------------------------------
+# Lateral buckling of a heavy rod lying in a horizontal pipe (Dawson and Paslay 1984)
+# --------------------------------------------------------------------------
+def _first_lateral_instability(L, N, c=0.005, w=10.0, EI=1.0):
+    """Compression at which the rod lying on the bottom of the pipe first has an unstable mode
+    (rodcont.stability.unstable_modes along T at Phi = 0, bisected to 1e-4 relative), and that count."""
+    from rodcont.stability import unstable_modes
+    from rodcont.system import RodSystem
+    rod = RodParameters(EI=EI, GJ=0.75, EA=1e6, w=w, L=L)  # nearly inextensible, as the classical theory
+    wall = Wall(c, eps=1e-5)
+    x = solve_equilibrium(None, 0.0, rod, N=N, T=10.0, wall=wall).x
+    state = {}
+
+    def count(T):
+        nonlocal x
+        s = RodSystem(rod, T=T, N=N, wall=wall)
+        r = s.disc.newton(x, s.params(0.0))
+        assert r.converged
+        x = r.x
+        state[T] = x
+        return unstable_modes(s, x, 0.0)
+
+    F_dp = 2 * np.sqrt(EI * w / c)
+    assert count(10.0) == 0 and count(-0.5 * F_dp) == 0 and count(-0.95 * F_dp) == 0
+    lo, hi = -0.95 * F_dp, -1.2 * F_dp
+    n_hi = count(hi)
+    assert n_hi >= 1
+    while abs(hi - lo) > 1e-4 * F_dp:
+        mid = 0.5 * (lo + hi)
+        x = state[lo]
+        if count(mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return -hi / F_dp, n_hi
+
+
+def test_lateral_buckling_in_a_horizontal_pipe_tends_to_dawson_paslay():
+    """F_cr -> 2 sqrt(EI w / c) from above as the rod lengthens (the contact arc's clamped-like ends raise
+    it by O(1/L^2): measured 1.0267, 1.0064, 1.0017 for L = 4, 8, 16 with c = 0.005); the modes come
+    in pairs, which a determinant's sign does not see (the next test)."""
+    r4, n4 = _first_lateral_instability(4.0, 120)
+    r8, n8 = _first_lateral_instability(8.0, 240)
+    assert 1.0 < r8 < r4 < 1.04
+    assert r4 - 1 > 3 * (r8 - 1)  # O(1/L^2)
+    assert r8 < 1.01
+
+
+def test_a_pair_of_crossings_the_branch_point_test_misses_is_reported(tmp_path, capsys):
+    conduit = tmp_path / "pipe.toml"
+    conduit.write_text("[conduit]\nclearance = 0.005\n")
+    code, _, err = run(["trace", "--T", "10", "--L", "4", "--EA", "1e6", "--N", "120", "--conduit", str(conduit),
+                        "--phi-max", "1e-3", "--out", str(tmp_path / "a.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    code, out, err = run(["trace", "--start", f"{tmp_path / 'a.h5'}:0", "--param", "T", "--range", "-100", "20",
+                          "--direction", "down", "--out", str(tmp_path / "b.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    assert "warning      unstable modes 0 -> 3 between T = 10" in out
+    with h5py.File(tmp_path / "b.h5", "r") as f:
+        import json
+        (a, b, n0, n1), = json.loads(f.attrs["missed_crossings"])
+        assert n0 == 0 and n1 == 3 and b < -89.4 < a  # the interval holds Dawson-Paslay's load
+        assert f["branch/unstable_modes"][0] == 0 and f["branch/unstable_modes"][-1] == 3
+
+
+def test_shape_draws_the_conduit_the_rod_inside_and_its_contact_points(tmp_path, capsys, monkeypatch):
+    """What the picture holds, not its size: the tube at the (magnified) clearance around the axis, the
+    rod inside it, the contact points on the wall, and the translucent surface in the rendered figure."""
+    import rodcont.plots as plots
+    conduit = os.path.join(EXAMPLES, "conduit_straight.toml")
+    out = tmp_path / "pipe.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "8", "--conduit", conduit, "--out", str(out),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    seen = {}
+    original = plots.shape_figure
+
+    def spy(curves, path, title="", **kw):
+        seen.update(kw, curves=curves, title=title)
+        seen["figure"] = original(curves, path, title, **kw)
+        return seen["figure"]
+
+    monkeypatch.setattr(plots, "shape_figure", spy)
+    code, _, err = run(["shape", str(out), "--point", "0", "--point", "-1", "-o", str(tmp_path / "s.png")], capsys)
+    assert code == 0, err
+    magnify = 0.12 / 0.01
+    assert f"drawn ×{magnify:.3g}" in seen["title"]
+    X, Y, Z = seen["tube"]
+    assert np.allclose(np.hypot(Y, Z), magnify * 0.01)  # the straight axis is e1
+    for r, _ in seen["curves"]:
+        assert np.all(np.hypot(r[1], r[2]) <= magnify * 0.01 * (1 + 1e-3))  # inside the pipe
+    for pts in seen["contacts"]:
+        assert pts.shape[1] > 0
+        assert np.allclose(np.hypot(pts[1], pts[2]), magnify * 0.01, rtol=1e-3)  # on the wall
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    surfaces = [c for c in seen["figure"].axes[0].collections if isinstance(c, Poly3DCollection)]
+    assert len(surfaces) == 1 and surfaces[0].get_alpha() == pytest.approx(0.15)
+    assert_picture(tmp_path / "s.png")
+
+
+def test_in_continuous_contact_the_wall_force_is_the_soft_string_force():
+    """A 1 km drill pipe pulled (100 kN) through the build-and-hold well of examples/: along the build
+    (constant curvature), where it lies on the wall's inner side, the wall pressure equals the
+    soft-string (Johancsik) normal force N kappa - w sin(inclination), per unit conduit length, with the
+    rod's own axial force N and curvature kappa (by differences of the drawn centreline): bending
+    carries no shear there. Measured to 1.1e-5; the contact law's eps = 1e-5."""
+    import warnings
+    from rodcont.curves import parse_reference
+    curve = parse_reference(f"well:{os.path.join(EXAMPLES, 'well_build_and_hold.csv')}", 1.0)
+    rod = RodParameters(EI=1.25e6, GJ=9.6e5, EA=7.15e8, w=235.0, L=curve.span)  # 5" drill pipe, buoyed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the stations' curvature jumps (README: limits)
+        eq = solve_equilibrium(None, 0.0, rod, N=300, T=1e5, curve=curve, wall=Wall(0.05))
+    zone = eq.contact()["zones"][0]
+    assert zone[0] == pytest.approx(300, abs=2) and zone[1] > 580  # the build runs from MD 300 to 600
+    model, disc = eq.system.model, eq.system.disc
+    S = np.linspace(350, 550, 9)
+    con = model.contact(disc, eq.x, eq.system.params(0.0), S=S)
+    h = 0.5
+    r = [model.centreline(disc, eq.x, S + d) for d in (-h, 0.0, h)]
+    r1, r2 = (r[2] - r[0]) / (2 * h), (r[2] - 2 * r[1] + r[0]) / h**2
+    n = np.linalg.norm(r1, axis=0)
+    kappa = np.linalg.norm(np.cross(r1.T, r2.T).T, axis=0) / n**3
+    assert np.allclose(kappa, 1 / (1 / (3 * np.pi / 180 / 30) - 0.05), rtol=1e-5)  # on the inner wall
+    inclination = np.arccos(-r1[2] / n)
+    N = con["axial_force"]
+    soft = N * kappa * n - rod.w * n / (1 + N / rod.EA) * np.sin(inclination)
+    assert np.allclose(con["pressure"], soft, rtol=1e-4)
+    # on the wall, pressed in by the law's compliance: gap = eps c (P/p - p/P), P = w
+    P, pr = rod.w, con["pressure"]
+    assert np.allclose(con["gap"], 1e-5 * 0.05 * (P / pr - pr / P), rtol=1e-3, atol=1e-12)

@@ -45,6 +45,9 @@ class Branch:
     steps: int = 0
     newton_iterations: int = 0
     remeshes: int = 0
+    # (value before, value after, count before, count after): eigenvalue crossings no fold or branch point
+    # accounts for (rodcont.drivers.trace.StabilityCount)
+    missed_crossings: list = field(default_factory=list)
 
     def __post_init__(self):
         names = COLUMNS + ((self.param,) if self.param != "phi_L" else ())

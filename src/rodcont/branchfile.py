@@ -4,7 +4,10 @@ Layout (names are read by other tools; keep them)::
 
     /                      attrs: rodcont_version, kind (branch | fold_curve | diagram), gamma, T,
                                   w, EI, GJ, EA, L, N, k, param, weight_direction,
-                                  min_alignment_guard, max_error, stop_reason, settings (JSON)
+                                  min_alignment_guard, max_error, stop_reason, settings (JSON),
+                                  missed_crossings (JSON, when any: [value before, value after,
+                                  unstable modes before, after] of eigenvalue crossings that no
+                                  located fold or branch point accounts for)
     /branch/phi_L          (n,)   imposed end rotation, rad
     /branch/stretch        (n,)   (l - L) / L
     /branch/torque         (n,)   axial moment GJ u3

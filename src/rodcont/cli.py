@@ -314,7 +314,8 @@ def _curve(rod, straight_only: str | None = None):
         raise UserError(f"--reference {spec}: {exc}" if not str(exc).startswith("--reference") else str(exc)) \
             from None
     if abs(curve.span - rod.L) > 1e-9 * rod.L:
-        raise UserError(f"--reference {spec}: its span {curve.span:g} differs from --L {rod.L:g}; give --L {curve.span:g}")
+        raise UserError(f"--reference {spec}: its span {curve.span:.15g} differs from --L {rod.L:.15g}; "
+                        f"give --L {curve.span:.15g}")
     return curve
 
 
@@ -739,6 +740,11 @@ def _summary(data, elapsed):
     click.echo(f"branch pts   {len(data.branch_points.get('index', []))}")
     click.echo(f"stop reason  {data.attrs.get('stop_reason')}")
     click.echo(f"time         {elapsed:.3f} s")
+    import json
+    for a, b, n0, n1 in json.loads(data.attrs.get("missed_crossings", "[]")):
+        click.echo(f"warning      unstable modes {n0} -> {n1} between {data.param} = {a:.10g} and {b:.10g}: "
+                   f"more eigenvalues crossed zero than the located folds and branch points account for "
+                   f"(unseen bifurcations; retrace with a smaller --ds-max)")
     _fold_table(data)
     bp = data.branch_points
     for j in range(len(bp.get("index", []))):

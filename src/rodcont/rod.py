@@ -263,7 +263,9 @@ class EulerianRod:
                                  interval=interval, params=PARAMS, names=FIELDS,
                                  jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
                                  residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")],
-                                 jacobian=self.jacobian if self.constant_frame else None)
+                                 # the hand-derived derivatives cover the straight rod without a wall;
+                                 # every other case takes the complex step of its residual
+                                 jacobian=self.jacobian if self.constant_frame and wall is None else None)
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)

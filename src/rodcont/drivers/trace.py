@@ -189,8 +189,17 @@ class StabilityCount:
     ``phi_L`` is singular: at folds and branch points. It is computed (an
     eigenproblem, a few ms) at the first point, at every special point, at the
     first regular point after one, and every ``every`` points as a check;
-    other points carry the last count. ``-1`` where it is not defined (a
-    curved reference curve, or a trace in a parameter other than ``phi_L``).
+    other points carry the last count. In a trace of another parameter at
+    fixed ``phi_L`` the controls are the same (``Phi`` and ``T`` imposed), so it
+    is counted there too. ``-1`` where it is not defined (a curved reference
+    curve).
+
+    A check that finds another count with no special point since means that
+    eigenvalues crossed zero unseen: the branch-point detector watches the
+    sign of a determinant, which an even number of crossings in one step
+    (a symmetric and an antisymmetric mode at nearly the same load: lateral
+    buckling in a pipe) leaves unchanged. That is reported in ``missed``
+    (and warned): ``(parameter before, parameter after, count before, count after)``.
     """
 
     def __init__(self, every: int = 50):
@@ -198,19 +207,42 @@ class StabilityCount:
         self.last = None
         self.fresh = True
         self.since = 0
+        self.ref = None       # (count, parameter) at the last counted non-singular point
+        self.crossings = 0    # folds and branch points located since then
+        self.missed: list = []
 
     def __call__(self, system: RodSystem, pt: Point) -> int:
-        if not system.straight or system.param != "phi_L":
+        if not system.straight:
             pt.data["unstable_modes"] = -1
             return -1
         self.since += 1
         special = pt.kind not in (Kind.REGULAR,)
         if self.last is None or self.fresh or special or self.since >= self.every:
             from ..stability import unstable_modes
+            if system.param == "phi_L":
+                at, phi = system, pt.p
+            else:  # the point's parameters as the base of a Phi-system (same controls)
+                at = RodSystem.__new__(RodSystem)
+                at.__dict__.update(system.__dict__)
+                at.base, at.param, at.index, at.scale = system.params(pt.p), "phi_L", 0, 1.0
+                phi = float(at.base[0])
             try:
-                n = int(unstable_modes(system, pt.x, pt.p))
+                n = int(unstable_modes(at, pt.x, phi))
             except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
-                raise RuntimeError(f"stability count failed at phi_L = {pt.p:.10g}: {exc}") from exc
+                raise RuntimeError(f"stability count failed at {system.param} = {pt.p:.10g}: {exc}") from exc
+            if pt.kind in (Kind.FOLD, Kind.BRANCH_POINT):
+                self.crossings += 1  # singular here: its count is not a reference
+            else:
+                if self.ref is not None and abs(n - self.ref[0]) > self.crossings:
+                    self.missed.append((self.ref[1], float(pt.p), self.ref[0], n))
+                    import warnings
+                    warnings.warn(f"the number of unstable modes changed from {self.ref[0]} to {n} between "
+                                  f"{system.param} = {self.ref[1]:.10g} and {pt.p:.10g} across "
+                                  f"{self.crossings} located fold(s) or branch point(s): more eigenvalues "
+                                  f"crossed zero than were seen (the branch-point test watches a determinant's "
+                                  f"sign, which two crossings in one step leave unchanged); trace that interval "
+                                  f"with a smaller --ds-max to separate them", RuntimeWarning, stacklevel=2)
+                self.ref, self.crossings = (n, float(pt.p)), 0
             self.last, self.since = n, 0
             self.fresh = special and pt.kind != Kind.START
         pt.data["unstable_modes"] = self.last
@@ -338,6 +370,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                             lambda q: o.stretch_max - q.data["stretch"], stop=True))
     accuracy = Accuracy(o.max_error)
     stability = StabilityCount()
+    stability.missed = branch.missed_crossings
     t_start = time.perf_counter()
     seg = _Segment(system, np.asarray(x0, float), float(p0), tangent0, exact)
     segments = 0
@@ -603,6 +636,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     finally:
         if writer is not None:
             try:
+                if branch.missed_crossings:
+                    writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
                 if wall is not None and len(branch):
                     _contact_group(writer, branch, system)
             finally:
