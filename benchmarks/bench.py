@@ -20,6 +20,8 @@ time of the measured process where a whole process is timed. Sections:
    1500, 5000 (linear in N), peak memory.
 5. The whole Gamma = 1 diagram up to Phi = 40, whole process (target 10 s),
    per-branch times.
+7. A 1 km drill pipe in a survey-defined well with 2000 subintervals: one
+   equilibrium, whole process (target 10 s).
 6. Many branches: a 6-Gamma sweep on a dask LocalCluster of 1 and 2 worker
    processes (speed-up).
 """
@@ -208,6 +210,19 @@ def section_diagram(quick):
     print(f"whole process {cpu_s:.2f} s CPU   target 10 s  {verdict(cpu_s <= 10.0)}")
 
 
+def section_well(quick):
+    print("\n## 7. A 1 km drill pipe in a survey-defined well (examples/conduit_well.toml), N = 2000: one "
+          "equilibrium, whole process (CPU, peak memory)")
+    rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
+    conduit = os.path.join(ROOT, "examples", "conduit_well.toml")
+    cmd = rc + ["solve", "--T", "1e5", "--phi", "0", "--conduit", conduit, "--L", "973.077121578337",
+                "--EI", "1.25e6", "--GJ", "9.6e5", "--EA", "7.15e8", "--w", "235", "--N", "2000"]
+    best = child_cpu(cmd, repeats=1 if quick else 3)
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(f"one equilibrium {best:.2f} s CPU ({6 * 5 * 2000 + 11} unknowns), "
+          f"peak memory of the children so far {peak:.0f} MB   target 10 s  {verdict(best <= 10.0)}")
+
+
 def section_dask(quick):
     print("\n## 6. A 6-Gamma sweep on a dask LocalCluster of process workers")
     try:
@@ -230,13 +245,13 @@ def section_dask(quick):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", nargs="*", help="sections to run: floor branch accuracy long diagram dask")
+    ap.add_argument("--only", nargs="*", help="sections to run: floor branch accuracy long diagram well dask")
     args = ap.parse_args()
     print(f"# rodcont {rodcont.__version__} benchmark, {time.strftime('%Y-%m-%d')}, {platform.machine()}, "
           f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, "
           f"load average {os.getloadavg()[0]:.2f}")
     sections = dict(floor=section_floor, branch=section_branch, accuracy=section_accuracy, long=section_long,
-                    diagram=section_diagram, dask=section_dask)
+                    diagram=section_diagram, well=section_well, dask=section_dask)
     for name, fn in sections.items():
         if args.only and name not in args.only:
             continue

@@ -755,3 +755,23 @@ def test_spline_values_and_derivatives_match_scipy(k, m):
     for nu in range(min(m + 2, s.degree + 1)):
         np.testing.assert_allclose(s.evaluate(coef, x, nu), ref(x, nu), rtol=1e-12,
                                    atol=1e-12 * np.max(np.abs(ref(x, nu))))
+
+
+def test_blocks_of_points_give_the_same_jacobian(monkeypatch):
+    """Long rods evaluate the complex step in blocks of points: the same residual and Jacobian as one call
+    (block sizes that do and do not divide the number of points)."""
+    import rodcont.collocation as col
+    from rodcont.contact import Wall
+    from rodcont.curves import parse_reference
+    from rodcont.rod import EulerianRod, RodParameters
+    model = EulerianRod(RodParameters(), parse_reference("wiggle:0.05,0.03", 1.0), Wall(0.02, eps=1e-3))
+    disc = model.discretise(20)
+    rng = np.random.default_rng(3)
+    x = model.initial_guess(disc, 10.0) + 1e-3 * rng.standard_normal(disc.size)
+    p = model.params(2.0, T=10.0)
+    F0, J0, _ = disc.linearise(x, p)
+    for block in (7, 50):
+        monkeypatch.setattr(col, "POINT_BLOCK", block)
+        F, J, _ = disc.linearise(x, p)
+        assert np.array_equal(F, F0)
+        assert abs(J - J0).max() <= 1e-14 * abs(J0).max()

@@ -70,7 +70,7 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
     """An equilibrium inside the conduit from a guess that may cross its wall: homotopy in the smoothing.
 
     The contact law ``p (g + p/k) = mu`` (:mod:`rodcont.contact`) is solved
-    first with a soft wall (``eps = 0.1``), then with ``eps`` divided by 10 at
+    first with a soft wall (``eps = 0.1``), then with ``eps`` divided by 100 at
     each stage down to the wall's own, each stage from the previous solution
     (a stiff wall seen from a far-off guess stalls Newton's line search).
     Returns the last stage's solution (the caller confirms it with Newton).
@@ -78,8 +78,8 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
     import dataclasses
     model, wall = sysm.model, sysm.model.wall
     stages = [0.1]
-    while stages[-1] / 10 > wall.eps:
-        stages.append(stages[-1] / 10)
+    while stages[-1] / 100 > wall.eps:
+        stages.append(stages[-1] / 100)
     stages.append(wall.eps)
     try:
         for eps in stages:
