@@ -384,3 +384,30 @@ def test_in_continuous_contact_the_wall_force_is_the_soft_string_force():
     # on the wall, pressed in by the law's compliance: gap = eps c (P/p - p/P), P = w
     P, pr = rod.w, con["pressure"]
     assert np.allclose(con["gap"], 1e-5 * 0.05 * (P / pr - pr / P), rtol=1e-3, atol=1e-12)
+
+
+def test_contact_onset_is_located_and_tends_to_the_exact_onset():
+    """Tension lowered at Phi = 0 in a pipe of clearance 0.01: the trace locates where the rod touches the
+    wall (its largest pressure reaches contact_level P). The exact onset is where the free sag equals the
+    clearance (independent shooting, T* = 42.888); the located T tends to it like eps^(1/2) (at the event
+    the smoothed law carries a contact force ~ P sqrt(eps c / curvature)): measured -2.8e-2, -9.3e-3,
+    -2.9e-3 for eps = 1e-4, 1e-5, 1e-6."""
+    import rodcont
+    from scipy.optimize import brentq
+    from contact_reference import onset_clearance
+    c = 0.01
+    T_star = brentq(lambda T: onset_clearance(T) - c, 10.0, 200.0, xtol=1e-12)
+    err = {}
+    for eps in (1e-4, 1e-5, 1e-6):
+        wall = Wall(c, eps=eps)
+        eq = solve_equilibrium(None, 0.0, N=15, T=200.0, wall=wall)
+        b = rodcont.trace(None, N=15, T=200.0, param="T", phi_L=0.0, start=(eq.x, 200.0, None), wall=wall,
+                          p_range=(5, 300), direction=-1)
+        (i,) = [j for j, kind in enumerate(b.table["kind"]) if "contact onset" in str(kind)]
+        assert b.table["located"][i]
+        assert b.table["contact_zones"][i - 1] == 0 if i > 0 else True
+        assert b.table["contact_zones"][-1] == 1
+        err[eps] = b.table["T"][i] / T_star - 1
+    assert err[1e-4] < err[1e-5] < err[1e-6] < 0  # from below: the barrier holds the rod off the wall
+    assert abs(err[1e-4]) > 2.5 * abs(err[1e-5]) > 6 * abs(err[1e-6])
+    assert abs(err[1e-6]) < 5e-3

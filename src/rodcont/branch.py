@@ -69,6 +69,9 @@ class Branch:
         self.table["located"].append(bool(pt.located))
         if self.param != "phi_L":
             self.table[self.param].append(float(pt.data[self.param]))
+        for name in ("min_gap", "side_force", "contact_zones"):  # inside a conduit
+            if name in pt.data:
+                self.table.setdefault(name, []).append(pt.data[name])
         self.coefficients.append(np.asarray(pt.x, float))
         self.tangents.append(np.append(pt.tx, pt.tp))
         self.meshes.append(np.asarray(breakpoints, float))

@@ -114,7 +114,8 @@ class RodSystem:
             out[self.param] = float(value)
         if self.wall is not None:
             c = self.model.contact(self.disc, x, p, per_interval=8)
-            out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]))
+            out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
+                       max_pressure=float(c["pressure"].max()))
         return out
 
     def arclength_scale(self):

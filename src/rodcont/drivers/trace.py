@@ -365,6 +365,10 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6),
               Event("the stretch factor reached 0 (compressed through zero length: not physical)",
                     lambda q: q.data["alpha_min"], stop=True, tol=1e-6)]
+    if system.wall is not None:
+        # the rod touches the wall (or leaves it) where its largest pressure crosses the contact level
+        level = system.wall.contact_level * system.model.contact_scale
+        events.append(Event("contact onset or lift-off", lambda q: q.data["max_pressure"] - level, tol=1e-9))
     if o.stretch_max is not None:
         events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
                             lambda q: o.stretch_max - q.data["stretch"], stop=True))
