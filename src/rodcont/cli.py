@@ -357,8 +357,9 @@ def _conduit(path, rod):
     spec = sec.get("reference")
     if spec is None:
         return _curve(rod), wall
-    if _explicit("reference"):
-        raise UserError(f"--conduit {path} gives the reference curve: drop --reference")
+    given = click.get_current_context().meta.get("rodcont.reference", "straight")
+    if given is not None and given.strip() not in ("straight", spec.strip()):
+        raise UserError(f"--conduit {path} gives the reference curve ({spec}): drop --reference {given}")
     if not isinstance(spec, str):
         raise UserError(f"--conduit {path}: reference must be a string KIND[:ARGS], got {spec!r}")
     kind, _, args = spec.strip().partition(":")

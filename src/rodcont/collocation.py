@@ -451,9 +451,11 @@ class Collocation:
         this mesh's spaces. The matrices are built once per source (a remesh
         carries a solution and its tangent over).
         """
+        # keyed by the source's mesh, not the object: a remeshed trace must not keep old meshes alive
+        key = (source.breakpoints.tobytes(), source.k, tuple(source.problem.orders))
         cached = getattr(self, "_transfer_from", None)
-        if cached is None or cached[0] is not source:
-            cached = self._transfer_from = (source, self._transfer_parts(source))
+        if cached is None or cached[0] != key:
+            cached = self._transfer_from = (key, self._transfer_parts(source))
         out = np.zeros(self.size)
         for i, (m, At, AtA, svals, scols, w) in enumerate(cached[1]):
             c = x[source.index[i]]

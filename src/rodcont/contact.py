@@ -94,11 +94,11 @@ class Wall:
     @property
     def spec(self) -> str:
         """A one-line description stored in branch files and compared on restart."""
-        s = f"clearance={self.clearance!r},eps={self.eps!r}"
+        s = f"clearance={float(self.clearance)!r},eps={float(self.eps)!r}"
         if self.force_scale is not None:
-            s += f",force_scale={self.force_scale!r}"
+            s += f",force_scale={float(self.force_scale)!r}"
         if self.contact_level != 0.5:
-            s += f",contact_level={self.contact_level!r}"
+            s += f",contact_level={float(self.contact_level)!r}"
         return s
 
     @classmethod

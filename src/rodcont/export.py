@@ -104,7 +104,7 @@ def point_parameters(data, i: int) -> np.ndarray:
 def _model_at(data, p):
     from .rod import EulerianRod
     from .system import rod_at
-    return EulerianRod(rod_at(data.rod, p))
+    return EulerianRod(rod_at(data.rod, p), data.curve, data.wall)
 
 
 def _jets(disc, x, S):

@@ -474,7 +474,7 @@ class _View:
                 self._systems[key] = self.make_system(breakpoints)
             else:
                 self._systems[key] = RodSystem(self.rod, T=self.T, N=breakpoints.size - 1, k=self.k,
-                                               breakpoints=breakpoints)
+                                               breakpoints=breakpoints, wall=getattr(self.b, "wall", None))
         return self._systems[key]
 
 

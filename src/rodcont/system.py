@@ -113,7 +113,7 @@ class RodSystem:
         if self.param != "phi_L":
             out[self.param] = float(value)
         if self.wall is not None:
-            c = self.model.contact(self.disc, x, p, per_interval=8)
+            c = self.model.contact(self.disc, x, p)
             out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
                        max_pressure=float(c["pressure"].max()))
         return out

@@ -62,7 +62,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
     pt = data.point(int(folds["index"][fold]))
     k = int(data.attrs["k"])
     b = pt["breakpoints"]
-    one = RodSystem(data.rod, T=data.tension, N=b.size - 1, k=k, breakpoints=b, curve=data.curve)
+    one = RodSystem(data.rod, T=data.tension, N=b.size - 1, k=k, breakpoints=b, curve=data.curve, wall=data.wall)
     two = RodSystem2(one, param)
     q0 = two.value()
     if not lo <= q0 <= hi:
@@ -87,6 +87,7 @@ def fold_curve(data, fold: int, param: str, lo: float, hi: float, out: str | Non
                     GJ=data.rod.GJ, EA=data.rod.EA, L=data.rod.L, N=int(b.size - 1), k=k, param=param,
                     weight_direction=np.asarray(data.rod.weight_direction), min_alignment_guard=guard,
                     reference=str(data.attrs.get("reference", "straight")),
+                    conduit=str(data.attrs.get("conduit", "")),
                     max_error=max_error, source=f"{data.label}: fold {fold}",
                     settings=json.dumps(dict(range=[lo, hi], ds=ds, ds_max=ds_max, max_steps=max_steps,
                                              forced=list(forced), max_error=max_error)))

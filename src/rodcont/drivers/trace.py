@@ -19,6 +19,7 @@ it stops at once.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import time
@@ -232,6 +233,8 @@ class StabilityCount:
                 raise RuntimeError(f"stability count failed at {system.param} = {pt.p:.10g}: {exc}") from exc
             if pt.kind in (Kind.FOLD, Kind.BRANCH_POINT):
                 self.crossings += 1  # singular here: its count is not a reference
+            elif pt.kind == Kind.START and self.ref is None:
+                pass  # a trace may start at a fold or a branch point (a restart, a switch): not a reference
             else:
                 if self.ref is not None and abs(n - self.ref[0]) > self.crossings:
                     self.missed.append((self.ref[1], float(pt.p), self.ref[0], n))
@@ -244,7 +247,7 @@ class StabilityCount:
                                   f"with a smaller --ds-max to separate them", RuntimeWarning, stacklevel=2)
                 self.ref, self.crossings = (n, float(pt.p)), 0
             self.last, self.since = n, 0
-            self.fresh = special and pt.kind != Kind.START
+            self.fresh = special and (pt.kind != Kind.START or self.ref is None)
         pt.data["unstable_modes"] = self.last
         return self.last
 
@@ -697,7 +700,9 @@ def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: Tr
                 weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=opts.min_alignment,
                 max_error=opts.max_error, phi_L_fixed=float(system.base[0]) if param != "phi_L" else math.nan,
                 reference=str(getattr(system.curve, "spec", "straight") or "straight"),
-                conduit=system.wall.spec if system.wall is not None else "",
+                # the force scale as resolved (a default follows w or EI, which a trace may change)
+                conduit=(dataclasses.replace(system.wall, force_scale=system.model.contact_scale).spec
+                         if system.wall is not None else ""),
                 settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float))
     if rod.w == 0:
         meta["gamma"] = math.nan
