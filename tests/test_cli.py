@@ -203,7 +203,10 @@ def test_interrupted_trace_leaves_a_valid_file_and_restarts(tmp_path):
     assert cont.branch["phi_L"][0] == pytest.approx(data.branch["phi_L"][-1], abs=1e-9)
     # it goes on, not back: the stretch grows monotonically along this branch (Phi does not: if the
     # interrupt came close to the fold at 13.10, the continuation passes it and Phi falls again)
-    assert len(cont) > 2 and np.all(np.diff(cont.branch["stretch"]) > 0)
+    # (the last point may be the validity guard, located to 1e-6 of the step's change of min d3.K3: when
+    # the point before it already lay within that band, the located guard can sit a hair before it)
+    stretch = cont.branch["stretch"]
+    assert len(cont) > 2 and np.all(np.diff(stretch[:-1]) > 0) and stretch[-1] > stretch[-2] * (1 - 1e-6)
 
 
 def test_python_cli_entry_matches_console_script():
