@@ -150,6 +150,11 @@ def test_the_well_example_names_its_span(capsys):
     ("[conduit]\nclearance = 0.01\nradius = 3\n", "unknown key(s) radius"),
     ("[conduit]\nclearance = 0.01\nreference = 'nope:1'\n", "nope"),
     ("[conduit\n", "not a TOML file"),
+    ("[conduit]\nclearance = 0.01\nreference = 5\n", "reference must be a string"),
+    ("[conduit]\nclearance = 1e308\n", "outside the range"),
+    ("[conduit]\nclearance = nan\n", "clearance must be a positive number"),
+    ("[conduit]\nclearance = 0.01\neps = 1e-300\n", "at least 1e-12"),
+    ("[conduit]\nclearance = 0.01\nforce_scale = 1e308\n", "outside the range"),
 ])
 def test_bad_conduit_files_are_one_line_errors(tmp_path, capsys, text, message):
     f = tmp_path / "c.toml"
@@ -449,3 +454,12 @@ def test_a_restart_at_a_fold_reports_no_missed_crossing(tmp_path, capsys):
         assert "missed_crossings" not in f.attrs
         u = f["branch/unstable_modes"][:]
         assert u[1] == u[-1] and u[-1] >= 0
+
+
+def test_the_conduit_file_is_never_the_output(tmp_path, capsys):
+    conduit = tmp_path / "c.toml"
+    conduit.write_text("[conduit]\nclearance = 0.01\n")
+    before = conduit.read_bytes()
+    code, out, err = run(["trace", "--gamma", "1", "--conduit", str(conduit), "--out", str(conduit), "--overwrite"],
+                         capsys)
+    assert code == 2 and "rodcont: error:" in err and conduit.read_bytes() == before

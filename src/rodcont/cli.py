@@ -357,11 +357,11 @@ def _conduit(path, rod):
     spec = sec.get("reference")
     if spec is None:
         return _curve(rod), wall
+    if not isinstance(spec, str):
+        raise UserError(f"--conduit {path}: reference must be a string KIND[:ARGS], got {spec!r}")
     given = click.get_current_context().meta.get("rodcont.reference", "straight")
     if given is not None and given.strip() not in ("straight", spec.strip()):
         raise UserError(f"--conduit {path} gives the reference curve ({spec}): drop --reference {given}")
-    if not isinstance(spec, str):
-        raise UserError(f"--conduit {path}: reference must be a string KIND[:ARGS], got {spec!r}")
     kind, _, args = spec.strip().partition(":")
     if kind == "well" and args and not os.path.isabs(args):
         spec = f"well:{os.path.join(os.path.dirname(os.path.abspath(path)), args)}"
@@ -684,7 +684,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
                 extra["phi_L"] = from_straight
         elif param != "phi_L":
             raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
-        _check_out(out, [], overwrite)
+        _check_out(out, [conduit] if conduit is not None else [], overwrite)
     extra["meta"] = _meta()
     _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 

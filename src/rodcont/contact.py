@@ -67,6 +67,14 @@ class Wall:
                 raise ValueError(f"conduit {name} must be a positive number, got {v!r}")
         if not self.eps <= 0.1:
             raise ValueError(f"conduit eps must be at most 0.1 (a relative smoothing), got {self.eps!r}")
+        if not self.eps >= 1e-12:
+            raise ValueError(f"conduit eps must be at least 1e-12 (a smaller one makes the wall stiffer than "
+                             f"double precision resolves), got {self.eps!r}")
+        for name in ("clearance", "force_scale"):
+            v = getattr(self, name)
+            if v is not None and not 1e-100 <= v <= 1e100:
+                raise ValueError(f"conduit {name} = {v!r} is outside the range rodcont computes with "
+                                 f"(1e-100 .. 1e100): change units")
         P = self.force_scale
         if P is not None and (isinstance(P, bool) or not isinstance(P, (int, float, np.integer, np.floating))
                               or not math.isfinite(P) or not P > 0):

@@ -289,15 +289,17 @@ class EulerianRod:
         r[0, 2] = 1.0
         return r[0], r[1], r[2]
 
+    def _straight_jets(self, z):
+        """``r', r'', r'''`` (frame components), ``F``, ``[F]'``, ``phi'``, ``phi''`` of the local jets."""
+        r1, r2, r3 = self._frame_jets(z)
+        return r1, r2, r3, z[Jet.F], z[Jet.FP], z[Jet.PHI[1]], z[Jet.PHI[2]]
+
     def residual(self, S, z, p):
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
         if not self.constant_frame:
             return self._residual_curved(S, z, p)
         phi_L, T, w, EI, GJ, EA = p
-        r1, r2, r3 = self._frame_jets(z)
-        F = z[Jet.F]
-        Fp = z[Jet.FP]
-        phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
+        r1, r2, r3, F, Fp, phi1, phi2 = self._straight_jets(z)
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
         alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
@@ -328,13 +330,10 @@ class EulerianRod:
         the geometric quantities (``n, d3, d3', d3''``, ...) carry tangents along the six seeds
         ``Delta1', Delta1'', Delta1''', Delta2', Delta2'', Delta2'''`` (axis 0); the force and twist
         enter linearly (or bilinearly) and are differentiated in closed form. Checked against the
-        complex step of :meth:`residual` in ``tests/test_collocation.py``.
+        complex step of :meth:`residual` in ``tests/test_rod.py``.
         """
         phi_L, T, w, EI, GJ, EA = p
-        r1, r2, r3 = self._frame_jets(z)
-        F = z[Jet.F]
-        Fp = z[Jet.FP]
-        phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
+        r1, r2, r3, F, Fp, phi1, phi2 = self._straight_jets(z)
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         dr1, dr2, dr3 = _SEED_R
         # tangents along the geometric seeds: (6, npts) scalars, (6, 3, npts) vectors
