@@ -229,3 +229,33 @@ def test_restart_from_a_fold_goes_on_past_it(g1_file, tmp_path, capsys):
     assert d.branch["phi_L"][0] == pytest.approx(ref.folds["phi_L"][0], abs=1e-10)
     assert len(d.folds.get("index", [])) == 0
     assert np.all(np.diff(d.branch["stretch"]) > 0) and d.branch["phi_L"][-1] < d.branch["phi_L"][0]
+
+
+def test_a_restart_on_another_mesh_keeps_the_reference_curve(tmp_path, capsys):
+    """--start F:i --N 30 from a trace on a bump reference: the point is moved to the new mesh of the same
+    curve (it was moved to a straight-line mesh and re-solved there: stretch -5.2e-3 for 9.7e-4)."""
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "3", "--reference", "bump:0.05,0.3",
+                        "--out", str(a), "--quiet"], capsys)
+    assert code == 0, err
+    code, _, err = run(["trace", "--start", f"{a}:5", "--N", "30", "--phi-max", "4", "--out", str(b),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        assert fb.attrs["reference"] == "bump:0.05,0.3"
+        # the same equilibrium, to the discretisation error of the coarser mesh
+        assert abs(fb["branch/stretch"][0] - fa["branch/stretch"][5]) < 1e-8
+        assert abs(fb["branch/phi_L"][0] - fa["branch/phi_L"][5]) < 1e-8
+
+
+def test_a_restart_echoes_the_start_files_problem_not_the_defaults(tmp_path, capsys):
+    a = tmp_path / "a.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--EI", "2", "--phi-max", "1", "--out", str(a), "--quiet"],
+                       capsys)
+    assert code == 0, err
+    code, out, err = run(["trace", "--start", f"{a}:1", "--phi-max", "2", "--out", str(tmp_path / "b.h5"),
+                          "--quiet"], capsys)
+    assert code == 0, err
+    echo = [line for line in out.splitlines() if line.startswith("#")]
+    assert any(f"those of --start {a}:1" in line for line in echo)
+    assert not any(line.split("=")[0].strip("# ") in ("EI", "w", "gamma", "reference", "L") for line in echo)

@@ -221,12 +221,21 @@ def _echo_config(ctx) -> None:
     params["T"] = ctx.meta.get("rodcont.T")
     params["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
     params["reference"] = ctx.meta.get("rodcont.reference", "straight")
+    start = params.get("start")
+    if start is not None:
+        # a restart's rod, loads, reference curve, conduit and mesh are the start file's, not the defaults
+        for name in CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + ("N", "k"):
+            if name != "phi" and name not in _explicit("N", "k"):
+                params.pop(name, None)
     text = config_toml(params)
     ctx.meta["rodcont.config"] = text
     src = ctx.meta.get("rodcont.config_file")
     click.echo(f"# rodcont {ctx.info_name}" + (f" (--config {src})" if src else "") + ": the problem as run")
+    if start is not None:
+        click.echo(f"#   (the rod, its loads, reference curve, conduit and mesh are those of --start {start})")
     for line in text.splitlines():
         click.echo(f"#   {line}")
+
 
 
 def trace_options(f):
@@ -655,8 +664,8 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
             direction0 = (-np.asarray(direction0[0]), -direction0[1])
         if "N" in _explicit("N") and N != b.size - 1:
             from .system import RodSystem
-            src = RodSystem(rod, T=T, N=b.size - 1, k=k, breakpoints=b)
-            dst = RodSystem(rod, T=T, N=N, k=k)
+            src = RodSystem(rod, T=T, N=b.size - 1, k=k, breakpoints=b, curve=data.curve, wall=data.wall)
+            dst = RodSystem(rod, T=T, N=N, k=k, curve=data.curve, wall=data.wall)
             x0 = dst.disc.transfer(x0, src.disc)
             if direction0 is not None:
                 direction0 = (dst.disc.transfer(np.asarray(direction0[0]), src.disc), direction0[1])
