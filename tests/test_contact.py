@@ -524,3 +524,61 @@ def test_a_twisted_compressed_rod_wraps_the_cylinder_with_the_wall_force_of_a_un
     assert abs(force[0] / need[0] - 1) < 5e-3
     angle = _helix_wall_relation(s.model, s.disc, pt["x"], p, np.linspace(zones[0][0], zones[0][1], 400))[2]
     assert abs(np.unwrap(angle)[-1] - np.unwrap(angle)[0]) > 2 * 2 * np.pi  # more than two turns
+
+
+# --------------------------------------------------------------------------
+# Constrained Euler buckling (Domokos, Holmes and Royce 1997): a compressed rod buckles onto the wall
+# --------------------------------------------------------------------------
+def _point_contact_elastica(T, c, w, EI, EA, L):
+    """Independent: the planar clamped-clamped elastica pressed on the wall at its middle only (shooting,
+    tests/contact_reference.py), from the small-slope compressed beam through (0, 0) and (L/2, -c) with zero
+    slope at both. Returns l0, the clamp moment M0, the midspan reaction and the midspan moment."""
+    import contact_reference as cr
+    k, h = np.sqrt(-T / EI), L / 2
+    A = np.array([[1, 0, 1, 0], [0, 1, 0, k], [1, h, np.cos(k * h), np.sin(k * h)],
+                  [0, 1, -k * np.sin(k * h), k * np.cos(k * h)]])
+    _, _, C, D = np.linalg.solve(A, [0, 0, -c, 0])  # z = A + B x + C cos kx + D sin kx
+    par = (T, w, EI, EA)
+    s_h, M0, V0 = cr._newton(lambda z: cr._sys_mid(z, par, 1e-12, L, ("z", c)), [h, -EI * k * k * C, EI * k ** 3 * D])
+    m_mid = cr.integrate_span(M0, V0, s_h, T, w, EI, EA).sol(s_h)[3]
+    return dict(l0=2 * s_h, M0=M0, force=2 * (V0 + w * s_h), m_mid=m_mid)
+
+
+def test_a_compressed_rod_buckles_onto_the_wall_as_the_constrained_elastica():
+    """Constrained Euler buckling (Domokos, Holmes and Royce): a nearly weightless (w = 0.1, which only picks
+    the plane), nearly inextensible rod in a straight pipe (c = 0.01), compression raised at Phi = 0. It
+    buckles, touches the wall at the middle (the located contact onset tends to the free elastica's,
+    T* = -38.4344, like eps^(1/2): 3.8e-2, 1.3e-2, 3.9e-3) and is then pressed on it at one point: at
+    T = -100 the unstressed length, the clamp moment and the wall force tend to the constrained elastica's
+    (independent shooting), the moment like eps^(3/4) (measured 2.9e-3, 5.1e-4, 9.9e-5 for eps = 1e-4,
+    1e-5, 1e-6). This trace used to stop at the onset for eps = 1e-4 (accuracy guard) and to leap from it
+    to the unbuckled branch for eps = 1e-6: a corrector stalled by the stiff law was taken for converged
+    (its point off by 1e-6 of the span), and a new mesh restarted the steps at ds = 0.1."""
+    from scipy.optimize import brentq
+    from contact_reference import onset_clearance
+    from rodcont.drivers.trace import trace
+    from rodcont.system import RodSystem
+    rod, c = RodParameters(w=0.1, EA=1e5), 0.01
+    T_star = brentq(lambda T: onset_clearance(T, w=rod.w, EA=rod.EA) - c, -38.5, -38.0, xtol=1e-12)
+    ref = _point_contact_elastica(-100.0, c, rod.w, rod.EI, rod.EA, rod.L)
+    assert ref["m_mid"] > 0 and ref["force"] > 0  # a point contact at T = -100, not yet a flat one
+    err = {}
+    for eps in (1e-4, 1e-5, 1e-6):
+        wall = Wall(c, eps=eps, force_scale=10.0)
+        eq = solve_equilibrium(None, 0.0, rod, T=-20.0, wall=wall)
+        b = trace(rod=rod, T=-20.0, wall=wall, param="T", start=(eq.x, -20.0, None),
+                  breakpoints=eq.system.disc.breakpoints, phi_L=0.0, p_range=(-100.0, 0.0), direction=-1)
+        assert b.table["T"][-1] == pytest.approx(-100.0, abs=1e-9)
+        (i,) = [j for j, kind in enumerate(b.table["kind"]) if "contact onset" in str(kind)]
+        sysm = RodSystem(rod, T=-100.0, breakpoints=b.meshes[-1], wall=wall)
+        x = b.coefficients[-1]
+        out, con = sysm.outputs(x, 0.0), sysm.model.contact(sysm.disc, x, sysm.params(0.0))
+        assert len(con["zones"]) == 1 and con["zones"][0][0] < 0.5 < con["zones"][0][1]
+        alpha0 = 1.0 + sysm.disc.evaluate(x, np.array([0.0]), 5)[0] / rod.EA
+        M0 = rod.EI * alpha0 * sysm.disc.evaluate(x, np.array([0.0]), 1, 2)[0]
+        err[eps] = dict(onset=b.table["T"][i] / T_star - 1, l0=out["l0"] / ref["l0"] - 1, M0=M0 / ref["M0"] - 1,
+                        force=con["side_force"] / ref["force"] - 1)
+    assert abs(err[1e-4]["M0"]) > 3 * abs(err[1e-5]["M0"]) > 9 * abs(err[1e-6]["M0"])
+    assert abs(err[1e-6]["M0"]) < 2e-4 and abs(err[1e-6]["l0"]) < 1e-7 and abs(err[1e-6]["force"]) < 1e-3
+    assert abs(err[1e-4]["l0"]) > 3 * abs(err[1e-5]["l0"]) > 9 * abs(err[1e-6]["l0"])
+    assert abs(err[1e-4]["onset"]) > 2.5 * abs(err[1e-5]["onset"]) > 6 * abs(err[1e-6]["onset"])

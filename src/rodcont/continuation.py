@@ -576,7 +576,10 @@ class Tracker:
             if not math.isfinite(size) or (size > 2 * prev and not rounding):
                 self.newton_iterations += iterations
                 return None, "the corrector diverged"
-            if size <= accept * (1 + max_norm(y)) or (stalled and rounding):
+            # a residual that stops falling while the steps still contract is a slow (stiff) start of
+            # Newton's quadratic phase, not rounding: a stiff contact law showed 3.8e-4 then 6.4e-5 with
+            # the residual at 0.1, and the point was off by 1e-6 of the span
+            if size <= accept * (1 + max_norm(y)) or (stalled and rounding and size > 0.25 * prev):
                 t = lu.solve(e)
                 tx, tp = t[:-1], float(t[-1])
                 norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)

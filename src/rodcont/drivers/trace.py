@@ -387,11 +387,16 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     last_recorded: tuple | None = None  # (point, system) of the last stored point
     reason = StopReason(Stop.START_FAILED, "not started")
     steps = iterations = 0
+    step_in_use = None  # the step size reached before a remesh: a new segment goes on with it
     try:
         while True:
             sysm = seg.system
             tracker = Tracker(sysm, seg.x, seg.p, settings, monitor=sysm.outputs, events=events,
                               tangent0=seg.tangent, exact_start=seg.exact)
+            if step_in_use is not None:
+                # not the initial ds: where a stiff stretch forced small steps, a fresh segment that
+                # starts with ds = 0.1 leaps past it, onto another branch (seen at a contact onset)
+                tracker.ds = step_in_use
             try:
                 first = tracker.start()
             except StopContinuation as exc:
@@ -452,14 +457,14 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     remeshes_here += 1
                     base = last_recorded[0]
                     next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
-                                       accuracy, o, at_least=err, target=o.fold_error / 10)
+                                       accuracy, o, at_least=err, target=o.fold_error / 10, ahead=(sysm, pt))
                     break
                 if err > o.max_error:
                     if o.adapt and sysm.disc.N < o.N_max and remeshes_here < 4:
                         remeshes_here += 1
                         base = last_recorded[0]
                         next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
-                                           accuracy, o, at_least=err)
+                                           accuracy, o, at_least=err, ahead=(sysm, pt))
                         break
                     reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
                                                     f"{o.max_error:g} at p = {pt.p:.10g}"
@@ -480,6 +485,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             steps += tracker.steps
             iterations += tracker.newton_iterations
             segments += 1
+            step_in_use = tracker.ds
             if next_seg is not None:
                 seg = next_seg
                 branch.remeshes += 1
@@ -502,11 +508,19 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
 
 
 def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
-            at_least: float = 0.0, target: float | None = None) -> _Segment:
-    """A new segment from ``pt`` on a mesh adapted to it (aiming at a tenth of the trigger, or ``target``)."""
+            at_least: float = 0.0, target: float | None = None, ahead: tuple | None = None) -> _Segment:
+    """A new segment from ``pt`` on a mesh adapted to it (aiming at a tenth of the trigger, or ``target``).
+
+    ``ahead = (system, point)``: the point of a step rejected for its error. The
+    mesh is adapted to it instead (from its own mesh, which may already be a
+    refinement): a feature that appears within the step, such as a new contact,
+    is not in ``pt``'s indicator, and a mesh adapted to ``pt`` fails the same
+    step again, however often it is refined.
+    """
     p = pt.p
-    indicator = sysm.interval_defect(pt.x, p)
-    b = adapted_mesh(sysm.disc.breakpoints, indicator, sysm.disc.k, max(err, at_least),
+    src, x_src, p_src = (sysm, pt.x, p) if ahead is None else (ahead[0], ahead[1].x, ahead[1].p)
+    indicator = src.interval_defect(x_src, p_src)
+    b = adapted_mesh(src.disc.breakpoints, indicator, src.disc.k, max(err, at_least),
                      target if target is not None else accuracy.trigger / 10,
                      N_max=o.N_max)
     new = sysm.with_mesh(sysm.conform(b))
