@@ -141,6 +141,7 @@ def test_the_well_example_names_its_span(capsys):
     code, out, err = run(["solve", "--T", "1e5", "--phi", "0", "--conduit",
                           os.path.join(EXAMPLES, "conduit_well.toml")], capsys)
     assert code == 2 and "give --L 973.07" in err
+    assert 'conduit_well.toml: reference = "well:well_build_and_hold.csv": its span 973.07' in err
 
 
 @pytest.mark.parametrize("text, message", [
@@ -161,6 +162,23 @@ def test_bad_conduit_files_are_one_line_errors(tmp_path, capsys, text, message):
     f.write_text(text)
     code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
     assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("bump:oops", "expected bump:H,THETA, got 1 value(s)"),
+    ("bump:0.1,x", "THETA must be a number, got 'x'"),
+    ("nosuchkind:1", "unknown kind 'nosuchkind'"),
+    ("well:missing.csv", "cannot read the survey file"),
+    ("", "needs KIND[:ARGS]"),
+])
+def test_a_bad_reference_in_a_conduit_file_names_the_file_and_its_key(tmp_path, capsys, spec, message):
+    """The conduit file's own reference key is the culprit, not --reference (which was not given)."""
+    f = tmp_path / "c.toml"
+    f.write_text(f'[conduit]\nclearance = 0.01\nreference = "{spec}"\n')
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f'--conduit {f}: reference = "{spec}": ' in err and message in err, err
+    assert "--reference" not in err, err
 
 
 def test_missing_conduit_file(capsys, tmp_path):
