@@ -141,6 +141,7 @@ def test_the_well_example_names_its_span(capsys):
     code, out, err = run(["solve", "--T", "1e5", "--phi", "0", "--conduit",
                           os.path.join(EXAMPLES, "conduit_well.toml")], capsys)
     assert code == 2 and "give --L 973.07" in err
+    assert 'conduit_well.toml: reference = "well:well_build_and_hold.csv": its span 973.07' in err
 
 
 @pytest.mark.parametrize("text, message", [
@@ -161,6 +162,23 @@ def test_bad_conduit_files_are_one_line_errors(tmp_path, capsys, text, message):
     f.write_text(text)
     code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
     assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("bump:oops", "expected bump:H,THETA, got 1 value(s)"),
+    ("bump:0.1,x", "THETA must be a number, got 'x'"),
+    ("nosuchkind:1", "unknown kind 'nosuchkind'"),
+    ("well:missing.csv", "cannot read the survey file"),
+    ("", "needs KIND[:ARGS]"),
+])
+def test_a_bad_reference_in_a_conduit_file_names_the_file_and_its_key(tmp_path, capsys, spec, message):
+    """The conduit file's own reference key is the culprit, not --reference (which was not given)."""
+    f = tmp_path / "c.toml"
+    f.write_text(f'[conduit]\nclearance = 0.01\nreference = "{spec}"\n')
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f'--conduit {f}: reference = "{spec}": ' in err and message in err, err
+    assert "--reference" not in err, err
 
 
 def test_missing_conduit_file(capsys, tmp_path):
@@ -189,6 +207,75 @@ def test_a_trace_in_a_conduit_stores_it_and_a_restart_keeps_it(tmp_path, capsys)
         assert f.attrs["conduit"] == Wall(0.01, eps=1e-5, force_scale=10.0).spec
         assert float(f["branch/phi_L"][-1]) > phi_end  # went on, inside the same pipe
         assert np.all(f["branch/contact_zones"][:] >= 1)
+
+
+def test_an_interrupted_trace_in_a_conduit_writes_its_contact_group_without_waiting(tmp_path, monkeypatch):
+    """Ctrl-C (a callback raising KeyboardInterrupt, as the CLI's handler does after a point is stored): the
+    /contact rows are computed as the points are recorded, so closing the file computes none (it computed
+    them all, two contact evaluations a point: seconds to minutes on a long trace), and /contact still
+    holds every point, the same rows a computation from the stored points gives."""
+    from rodcont.branchfile import load_branch
+    from rodcont.drivers.trace import trace
+    from rodcont.system import RodSystem
+    state = {"interrupted": False, "after": 0}
+    contact = EulerianRod.contact
+
+    def counted(self, *args, **kw):
+        state["after"] += state["interrupted"]
+        return contact(self, *args, **kw)
+    monkeypatch.setattr(EulerianRod, "contact", counted)
+    seen = []
+
+    def callback(pt):
+        seen.append(pt)
+        if len(seen) == 5:
+            state["interrupted"] = True
+            raise KeyboardInterrupt
+    out = tmp_path / "int.h5"
+    wall = Wall(0.01, eps=1e-5)
+    with pytest.raises(KeyboardInterrupt):
+        trace(gamma=1.0, wall=wall, out=str(out), callback=callback)
+    assert state["after"] == 0  # the old close computed 2 x 5 here
+    data = load_branch(str(out))
+    assert data.attrs["stop_reason"] == "interrupted" and len(data) == 5
+    with h5py.File(out, "r") as f:
+        g = f["contact"]
+        S = g["S"][:]
+        assert S.shape == (201,) and g["pressure"].shape == (5, 201) and g["gap"].shape == (5, 201)
+        zones = g["zones"][:]
+        assert zones.shape[1] == 4 and np.all(zones[:, 0] < 5)
+        assert g.attrs["clearance"] == 0.01
+        for i in range(5):
+            pt = data.point(i)
+            sysm = RodSystem(data.rod, data.gamma, k=5, breakpoints=pt["breakpoints"], wall=data.wall)
+            c = sysm.model.contact(sysm.disc, pt["x"], sysm.params(data.branch["phi_L"][i]), S=S)
+            for name in ("pressure", "gap", "axial_force", "torque"):
+                assert np.array_equal(g[name][i], c[name].astype(np.float32)), (i, name)
+            fine = sysm.model.contact(sysm.disc, pt["x"], sysm.params(data.branch["phi_L"][i]))
+            assert np.array_equal(zones[zones[:, 0] == i, 1:], np.asarray(fine["zones"], float).reshape(-1, 3))
+            assert len(fine["zones"]) == data.branch["contact_zones"][i]
+
+
+def test_a_second_interrupt_during_a_points_contact_rows_still_leaves_them_all(tmp_path, monkeypatch):
+    """A second Ctrl-C interrupts at once, possibly while a point's /contact rows are computed: the file's
+    close computes the rows missing (that point's), and /contact has a row for every point."""
+    import rodcont.drivers.trace as tr
+    fill = tr._ContactRows.fill
+    calls = []
+
+    def interrupted(self, branch):
+        calls.append(len(branch))
+        if len(calls) == 4:  # the 4th point recorded: interrupted before its rows
+            raise KeyboardInterrupt
+        fill(self, branch)
+    monkeypatch.setattr(tr._ContactRows, "fill", interrupted)
+    out = tmp_path / "int2.h5"
+    with pytest.raises(KeyboardInterrupt):
+        tr.trace(gamma=1.0, wall=Wall(0.01, eps=1e-5), out=str(out))
+    with h5py.File(out, "r") as f:
+        n = f["branch/phi_L"].shape[0]
+        assert n == 4 and f["contact/pressure"].shape == (4, 201)
+        assert np.all(np.isfinite(f["contact/pressure"][:])) and np.all(np.isfinite(f["contact/torque"][:]))
 
 
 # --------------------------------------------------------------------------

@@ -587,3 +587,65 @@ def test_well_reference_warns_about_curvature_jumps():
     assert np.all(np.isin(well.breakpoints, disc.breakpoints))
     with pytest.raises(ValueError, match="span"):
         EulerianRod(RodParameters(L=1.0), well)
+
+
+def _count_curve_evaluations(monkeypatch, curve):
+    """Wrap ``curve.jet`` (on its class): the number of calls and of points evaluated."""
+    calls = {"calls": 0, "points": 0}
+    jet = type(curve).jet
+
+    def counted(self, S):
+        calls["calls"] += 1
+        calls["points"] += np.size(S)
+        return jet(self, S)
+    monkeypatch.setattr(type(curve), "jet", counted)
+    return calls
+
+
+def test_curve_data_cache_does_not_thrash_with_many_grids(monkeypatch):
+    """The curve data of every grid one Newton iteration and one step's outputs read stay cached. The complex
+    step evaluates the residual in blocks of POINT_BLOCK points, one grid per block: above ~4500 subintervals
+    (k = 5) that was more grids than the old 24-entry FIFO held, and every call recomputed the curve.
+    A small block provokes the same (40 grids here)."""
+    import rodcont.collocation as col
+    from rodcont.contact import Wall
+    monkeypatch.setattr(col, "POINT_BLOCK", 8)
+    curve = parse_reference("bump:0.05,0.3", 1.0)
+    model = EulerianRod(PAPER, curve, Wall(0.02, eps=1e-3))
+    disc = model.discretise(60)
+    outputs = model.output_evaluator(disc)
+    x = model.initial_guess(disc, 10.0)
+    p = model.params(1.0, T=10.0)
+    calls = _count_curve_evaluations(monkeypatch, curve)
+    first = disc.linearise(x, p, dparams=[1]), disc.residual(x, p), outputs(x, p)
+    assert calls["calls"] >= 40  # the blocks, the whole grid, the output grids: more than 24
+    calls.update(calls=0, points=0)
+    second = disc.linearise(x, p, dparams=[1]), disc.residual(x, p), outputs(x, p)
+    assert calls == {"calls": 0, "points": 0}
+    assert np.array_equal(first[0][0], second[0][0]) and (first[0][1] != second[0][1]).nnz == 0
+    assert np.array_equal(first[1], second[1]) and first[2] == second[2]
+
+
+def test_curve_data_cache_memory_is_bounded(monkeypatch):
+    """The cache keeps at most ``curve_cache_bytes`` (least recently used out first), the complex step's tiled
+    grids are stored once (not once per copy), and what is evicted is recomputed to the same values."""
+    import rodcont.collocation as col
+    monkeypatch.setattr(col, "POINT_BLOCK", 16)
+    curve = parse_reference("arc:1", 1.0)
+    model = EulerianRod(PAPER, curve)
+    disc = model.discretise(40)
+    x = model.initial_guess(disc, 10.0) + 1e-3 * np.random.default_rng(2).standard_normal(disc.size)
+    p = model.params(1.0, T=10.0)
+    F0, J0, _ = disc.linearise(x, p)
+    # the 13 blocks of the complex step, each once (not once per copy of the batch): 12 doubles a point
+    # and the key (1 double a point)
+    assert len(model._curve_cache) == 13 and model._curve_cache_size == disc.npts * 13 * 8
+    small = EulerianRod(PAPER, curve)
+    small.curve_cache_bytes = 7_000  # about a third of what one evaluation reads
+    disc = small.discretise(40)
+    calls = _count_curve_evaluations(monkeypatch, curve)
+    for _ in range(2):
+        F, J, _ = disc.linearise(x, p)
+        assert 0 < small._curve_cache_size <= 7_000
+        assert np.array_equal(F, F0) and (J != J0).nnz == 0
+    assert calls["calls"] == 26  # every block computed again in the second evaluation: LRU on a cycle

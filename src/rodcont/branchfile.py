@@ -44,7 +44,8 @@ of the wall pressure) and ``contact_zones`` (their number), and::
     /contact/zones         (z, 4) point, S_start, S_end, force of every contact zone
                                   (S_start == S_end: a point contact)
 
-``/contact`` is written when the run ends (also when it is interrupted).
+``/contact`` is written when the run ends (also when it is interrupted: its rows are computed
+as the points are recorded, so closing the file does not wait for them).
 
 A diagram file holds ``/branches/<j>/`` with the ``branch``, ``folds`` and
 ``branch_points`` groups of each branch (and its end reasons as attributes),

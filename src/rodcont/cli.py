@@ -304,26 +304,36 @@ def _rod(w, EI, GJ, EA, L):
         raise UserError(str(exc)) from None
 
 
-def _curve(rod, straight_only: str | None = None):
+def _curve(rod, straight_only: str | None = None, source: str | None = None):
     """The --reference curve for ``rod`` (None for the straight span); ``straight_only`` names a
-    command that needs the straight reference."""
+    command that needs the straight reference. ``source``: where the specification comes from when
+    it is not ``--reference`` (a conduit file's ``reference`` key), the label of its errors."""
     spec = click.get_current_context().meta.get("rodcont.reference", "straight")
+    label = source or f"--reference {spec}"
     if spec is None or not spec.strip():
-        raise UserError("--reference needs KIND[:ARGS] (straight, bump:H,THETA, ...)")
+        raise UserError(f"{source}: needs KIND[:ARGS] (straight, bump:H,THETA, ...)" if source else
+                        "--reference needs KIND[:ARGS] (straight, bump:H,THETA, ...)")
     if spec.strip() == "straight":
         return None
     if straight_only:
         raise UserError(f"{straight_only} needs the straight reference (the straight rod state lives there); "
-                        f"got --reference {spec}")
+                        f"got {label}")
     from .curves import parse_reference
     try:
         with np_errstate():
             curve = parse_reference(spec, rod.L)
     except (ValueError, ArithmeticError) as exc:
-        raise UserError(f"--reference {spec}: {exc}" if not str(exc).startswith("--reference") else str(exc)) \
-            from None
+        msg = str(exc)
+        if source:  # parse_reference words its errors for --reference: say where the specification is
+            kind = spec.strip().partition(":")[0].strip()
+            for prefix in (f"--reference {spec}: ", f"--reference {kind}: ", "--reference: ", "--reference "):
+                if msg.startswith(prefix):
+                    msg = msg[len(prefix):]
+                    break
+            raise UserError(f"{source}: {msg}") from None
+        raise UserError(f"--reference {spec}: {msg}" if not msg.startswith("--reference") else msg) from None
     if abs(curve.span - rod.L) > 1e-9 * rod.L:
-        raise UserError(f"--reference {spec}: its span {curve.span:.15g} differs from --L {rod.L:.15g}; "
+        raise UserError(f"{label}: its span {curve.span:.15g} differs from --L {rod.L:.15g}; "
                         f"give --L {curve.span:.15g}")
     return curve
 
@@ -371,12 +381,14 @@ def _conduit(path, rod):
     given = click.get_current_context().meta.get("rodcont.reference", "straight")
     if given is not None and given.strip() not in ("straight", spec.strip()):
         raise UserError(f"--conduit {path} gives the reference curve ({spec}): drop --reference {given}")
+    import json
+    source = f"--conduit {path}: reference = {json.dumps(spec, ensure_ascii=False)}"  # as written in the file
     kind, _, args = spec.strip().partition(":")
     if kind == "well" and args and not os.path.isabs(args):
         spec = f"well:{os.path.join(os.path.dirname(os.path.abspath(path)), args)}"
     ctx = click.get_current_context()
     ctx.meta["rodcont.reference"] = spec
-    return _curve(rod), wall
+    return _curve(rod, source=source), wall
 
 
 def np_errstate():

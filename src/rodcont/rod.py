@@ -242,7 +242,8 @@ class EulerianRod:
                 raise ValueError(f"the span of the reference curve ({self.curve.span:.15g}) must equal the rod's "
                                  f"L ({self.rod.L:.15g}): stretch and Gamma are measured on the span "
                                  f"(use RodParameters(L=curve.span))")
-            self._curve_cache: dict = {}
+            self._curve_cache: dict = {}  # grid bytes -> data, least recently used first
+            self._curve_cache_size = 0  # bytes of data and keys held
             self.twist_offset = float(self.curve.end_twist)
             jumps = self.curve.curvature_jumps
             if jumps.size:
@@ -442,25 +443,46 @@ class EulerianRod:
                          za[PHI[0]], zb[PHI[0]] - end_phi, zb[Jet.F[2]] - T])
 
     # ---- the moving frame ------------------------------------------------------
+    #: Bound on the bytes of curve data kept by :meth:`_curve_data` (least recently used out first).
+    #: One Newton iteration on ``N`` subintervals reads about ``(k + 1) N`` distinct points (the
+    #: collocation points, once whole and once in blocks of ``POINT_BLOCK``), a continuation step
+    #: ``(3 k + 9) N`` more (outputs, check points): 96 bytes a point, so 256 MiB keep every grid of a
+    #: trace up to some 10^5 subintervals. A count of entries is no bound here: the number of
+    #: grids in use grows with the mesh (one per block of points).
+    curve_cache_bytes = 256 * 2**20
+
     def _curve_data(self, S):
         """Curvatures ``k`` ``(3, 3, n)``, the weight direction in frame components ``(3, n)`` at ``S``, and
         whether the frame twists (``k3 != 0``) there.
 
         Cached by the content of ``S``: the residual is evaluated again and again
         at the same points (collocation points, their complex-step copies, check points).
+        The complex step calls the residual at ``np.tile(S_block, m)``: such a grid is
+        recognised, its block cached once and tiled on return (``m`` copies of the
+        curve data would take ``m`` times the memory). Least recently used entries go
+        when the data kept would exceed :attr:`curve_cache_bytes`.
         """
         S = np.asarray(S, float)
-        key = S.tobytes()
-        hit = self._curve_cache.get(key)
+        base, reps = _untile(S)
+        key = base.tobytes()
+        cache = self._curve_cache
+        hit = cache.pop(key, None)
         if hit is None:
-            u, inv = np.unique(S, return_inverse=True)
+            u, inv = np.unique(base, return_inverse=True)
             j = self.curve.jet(u)
             gK = np.einsum("ain,i->an", j.K, self.g)
             hit = (np.ascontiguousarray(j.k[:, :, inv]), np.ascontiguousarray(gK[:, inv]), bool(np.any(j.k[2])))
-            if len(self._curve_cache) >= 24:
-                self._curve_cache.pop(next(iter(self._curve_cache)))
-            self._curve_cache[key] = hit
-        return hit
+            size = hit[0].nbytes + hit[1].nbytes + len(key)
+            self._curve_cache_size += size
+            while cache and self._curve_cache_size > self.curve_cache_bytes:
+                old_key = next(iter(cache))  # the least recently used
+                old = cache.pop(old_key)
+                self._curve_cache_size -= old[0].nbytes + old[1].nbytes + len(old_key)
+            if self._curve_cache_size > self.curve_cache_bytes:  # larger than the whole budget: not kept
+                self._curve_cache_size -= size
+                return _tiled(hit, reps)
+        cache[key] = hit  # (re)inserted last: the most recently used
+        return _tiled(hit, reps)
 
     def _curved_jets(self, S, z):
         """``r', r'', r'''`` (frame components), the curvatures and the weight direction at ``S``."""
@@ -784,6 +806,28 @@ class _Outputs:
         Fmax = float(np.sqrt((z[Jet.F] ** 2).sum(axis=0)).max())
         return np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
                         + [max(abs(p[0]), 1.0) / L**2])
+
+
+def _untile(S):
+    """``(block, m)`` with ``S == np.tile(block, m)`` for the shortest such block that starts a new
+    copy where ``S[0]`` recurs (the complex step's batches); ``(S, 1)`` for any other grid."""
+    if S.ndim != 1 or S.size < 2:
+        return S, 1
+    again = np.flatnonzero(S[1:] == S[0])
+    if again.size == 0:
+        return S, 1
+    m = int(again[0]) + 1
+    if S.size % m or not np.array_equal(S.reshape(-1, m), np.broadcast_to(S[:m], (S.size // m, m))):
+        return S, 1
+    return S[:m], S.size // m
+
+
+def _tiled(data, reps):
+    """Curve data of a block for ``reps`` copies of it."""
+    if reps == 1:
+        return data
+    k, gK, twist = data
+    return np.tile(k, (1, 1, reps)), np.tile(gK, (1, reps)), twist
 
 
 def helical_waves(S, D1, D2, D1p, D2p) -> int:

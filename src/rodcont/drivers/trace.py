@@ -304,8 +304,8 @@ class Recorder:
     """Adds points to a :class:`Branch` and, if any, to a branch-file group; publishes
     the file on every special point and at least every second."""
 
-    def __init__(self, branch: Branch, writer=None, group=None):
-        self.branch, self.writer, self.group = branch, writer, group
+    def __init__(self, branch: Branch, writer=None, group=None, contact: "_ContactRows | None" = None):
+        self.branch, self.writer, self.group, self.contact = branch, writer, group, contact
 
     def add(self, pt: Point, breakpoints: np.ndarray) -> int:
         i = self.branch.add(pt, breakpoints)
@@ -316,6 +316,8 @@ class Recorder:
             row.setdefault("error", np.nan)
             self.writer.add_point(self.group, row, str(pt.kind), pt.located, pt.x,
                                   np.append(pt.tx, pt.tp), breakpoints)
+            if self.contact is not None:
+                self.contact.fill(self.branch)
             if pt.kind not in (Kind.REGULAR,) or self.writer.due():
                 self.sync()
                 self.writer.flush()
@@ -646,7 +648,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
         group = writer.group("/", extra_columns=((param,) if param != "phi_L" else ())
                              + (CONTACT_COLUMNS if wall is not None else ()))
         _mesh_group(writer, system)
-    recorder = Recorder(branch, writer, group)
+    contact = _ContactRows(system) if writer is not None and wall is not None else None
+    recorder = Recorder(branch, writer, group, contact)
     try:
         with np.errstate(all="ignore"):
             run(system, x0, p0, opts, tangent0=tangent0, exact=exact, branch=branch, recorder=recorder,
@@ -659,50 +662,68 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
             try:
                 if branch.missed_crossings:
                     writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
-                if wall is not None and len(branch):
-                    _contact_group(writer, branch, system)
+                if contact is not None and len(branch):
+                    # the rows are computed as the points are recorded: here at most the last point's
+                    # (when a second Ctrl-C came during its computation), so an interrupt does not wait
+                    contact.fill(branch)
+                    contact.write(writer)
             finally:
                 writer.close(branch.stop_reason or "interrupted")
     return branch
 
 
-def _contact_group(writer, branch: Branch, system: RodSystem, samples: int = 201) -> None:
-    """``/contact``: the wall's clearance and law, the contact zones of every point and, on ``samples``
-    points of the span, the wall pressure, the gap, the axial force and the torque (written when the run
-    ends, also when it is interrupted; the branch table's min_gap, side_force, contact_zones go with each
-    point)."""
-    wall, model = system.wall, system.model
-    S_out = np.linspace(*model.interval, samples)
-    n = len(branch)
-    prof = {name: np.full((n, samples), np.nan, np.float32) for name in ("pressure", "gap", "axial_force", "torque")}
-    zones = []
-    cache: dict = {}
-    for i in range(n):
-        b = branch.meshes[i]
-        key = b.tobytes()
-        if key not in cache:
-            cache.clear()
-            cache[key] = system.with_mesh(b)
-        sysm = cache[key]
-        value = branch.table[system.param][i] if system.param != "phi_L" else branch.table["phi_L"][i]
-        p = sysm.params(float(value))
-        x = branch.coefficients[i]
-        fine = model.contact(sysm.disc, x, p)
-        zones.extend((i, a, e, f) for a, e, f in fine["zones"])
-        at = model.contact(sysm.disc, x, p, S=S_out)
-        for name in prof:
-            prof[name][i] = at[name]
-    g = writer.f.require_group("contact")
-    for name in list(g):
-        del g[name]
-    g.attrs.update(clearance=wall.clearance, eps=wall.eps, force_scale=model.contact_scale,
-                   contact_level=wall.contact_level,
-                   law="p (g + p/k) = mu, g = (c^2 - |Delta|^2)/(2c), k = P/(eps c), mu = eps c P")
-    g.create_dataset("S", data=S_out)
-    for name, data in prof.items():
-        g.create_dataset(name, data=data, compression="gzip", chunks=(min(n, 64), samples))
-    g.create_dataset("zones", data=np.asarray(zones, float).reshape(-1, 4), compression="gzip")
-    g["zones"].attrs["columns"] = "point,S_start,S_end,force"
+class _ContactRows:
+    """``/contact`` of a trace in a conduit, point by point as the trace records them: the contact zones
+    of each point and, on ``samples`` points of the span, the wall pressure, the gap, the axial force and
+    the torque (the branch table's min_gap, side_force, contact_zones go with each point).
+
+    Computed when each point is recorded (about 10 ms a point on the paper's mesh), written when the
+    run ends: computing them all at the end delayed the exit of an interrupted long trace by as much
+    (seconds to minutes), and a second Ctrl-C there lost the group."""
+
+    def __init__(self, system: RodSystem, samples: int = 201):
+        self.system = system
+        self.S = np.linspace(*system.model.interval, samples)
+        self.profiles: list[dict] = []
+        self.zones: list[tuple] = []
+        self._mesh = (None, None)  # (breakpoints bytes, RodSystem on that mesh): meshes change seldom
+
+    def fill(self, branch: Branch) -> None:
+        """Compute the rows of the points of ``branch`` not yet computed."""
+        system, model = self.system, self.system.model
+        while len(self.profiles) < len(branch):
+            i = len(self.profiles)
+            b = branch.meshes[i]
+            key = b.tobytes()
+            if self._mesh[0] != key:
+                self._mesh = (key, system.with_mesh(b))
+            sysm = self._mesh[1]
+            value = branch.table[system.param][i] if system.param != "phi_L" else branch.table["phi_L"][i]
+            p = sysm.params(float(value))
+            x = branch.coefficients[i]
+            fine = model.contact(sysm.disc, x, p)
+            at = model.contact(sysm.disc, x, p, S=self.S)
+            self.zones.extend((i, a, e, f) for a, e, f in fine["zones"])
+            self.profiles.append({name: np.asarray(at[name], np.float32)
+                                  for name in ("pressure", "gap", "axial_force", "torque")})
+
+    def write(self, writer) -> None:
+        """``/contact`` for the rows computed (every point of the branch after :meth:`fill`)."""
+        wall, model = self.system.wall, self.system.model
+        n, samples = len(self.profiles), self.S.size
+        prof = {name: np.array([r[name] for r in self.profiles], np.float32).reshape(n, samples)
+                for name in ("pressure", "gap", "axial_force", "torque")}
+        g = writer.f.require_group("contact")
+        for name in list(g):
+            del g[name]
+        g.attrs.update(clearance=wall.clearance, eps=wall.eps, force_scale=model.contact_scale,
+                       contact_level=wall.contact_level,
+                       law="p (g + p/k) = mu, g = (c^2 - |Delta|^2)/(2c), k = P/(eps c), mu = eps c P")
+        g.create_dataset("S", data=self.S)
+        for name, data in prof.items():
+            g.create_dataset(name, data=data, compression="gzip", chunks=(max(min(n, 64), 1), samples))
+        g.create_dataset("zones", data=np.asarray(self.zones, float).reshape(-1, 4), compression="gzip")
+        g["zones"].attrs["columns"] = "point,S_start,S_end,force"
 
 
 def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: TraceOptions, system: RodSystem,
