@@ -44,8 +44,8 @@ def test_the_law_is_the_smoothed_complementarity_it_claims(eps):
     assert wall.pressure(np.array([c]), np.array([0.0]), P)[0] == pytest.approx(P, rel=1e-14)
     # far from the wall the force is the barrier's O(eps); pressed in it grows like the penetration
     assert p[0] == pytest.approx(2 * eps * P, rel=1e-3)
-    q1, q2 = wall.force(D1, D2, P)
-    assert np.allclose(np.hypot(q1, q2), p * r / c) and np.all(q1 * D1 + q2 * D2 <= 0)
+    q1, q2, q3 = wall.force(D1, D2, P)
+    assert np.allclose(np.hypot(q1, q2), p * r / c) and np.all(q1 * D1 + q2 * D2 <= 0) and q3 == 0
 
 
 def test_the_law_is_analytic_so_the_complex_step_is_exact():
@@ -127,7 +127,7 @@ def test_a_curved_conduit_that_overlaps_itself_is_refused():
 # --------------------------------------------------------------------------
 # Command line
 # --------------------------------------------------------------------------
-@pytest.mark.parametrize("kind", ["straight", "bump", "arc", "helix"])
+@pytest.mark.parametrize("kind", ["straight", "bump", "arc", "helix", "taper"])
 def test_every_example_conduit_solves_and_reports_its_contact(kind, capsys):
     code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--N", "20",
                           "--conduit", os.path.join(EXAMPLES, f"conduit_{kind}.toml")], capsys)
@@ -669,3 +669,55 @@ def test_a_compressed_rod_buckles_onto_the_wall_as_the_constrained_elastica():
     assert abs(err[1e-6]["M0"]) < 2e-4 and abs(err[1e-6]["l0"]) < 1e-7 and abs(err[1e-6]["force"]) < 1e-3
     assert abs(err[1e-4]["l0"]) > 3 * abs(err[1e-5]["l0"]) > 9 * abs(err[1e-6]["l0"])
     assert abs(err[1e-4]["onset"]) > 2.5 * abs(err[1e-5]["onset"]) > 6 * abs(err[1e-6]["onset"])
+
+
+# --------------------------------------------------------------------------
+# A clearance that varies along the conduit
+# --------------------------------------------------------------------------
+def test_a_rod_lying_on_a_sloping_floor_loses_axial_force_at_the_rate_of_its_weight_along_the_slope():
+    """Clearance rising linearly from 0.002 to 0.004 over the span: the heavy rod (Gamma = 1) lies on a floor
+    sloping down by a = 0.002. On a frictionless incline the wall pushes normal to it, so along the contact the
+    axial force falls at the weight's component along the slope, dN/ds0 = -w sin(beta), i.e. dN/dS = -w a/alpha
+    per unit S, and the wall carries w cos(beta) (statics of a straight rod on an incline; no free span
+    enters). A wall that pushed only across the axis (no lean) would give dN/dS = 0. Measured in the middle
+    of the contact: 8e-8 relative for eps = 1e-6."""
+    rod, a = RodParameters(), 0.002
+    wall = Wall(((0.0, 0.002), (1.0, 0.002 + a)), eps=1e-6)
+    assert wall.varying and wall.clearance_at([0.25, 2.0]).tolist() == pytest.approx([0.0025, 0.004])
+    eq = solve_equilibrium(1.0, 0.0, rod, wall=wall, N=40)
+    sysm, x = eq.system, eq.x
+    p = sysm.params(0.0)
+    (z0, z1, _), = sysm.model.contact(sysm.disc, x, p)["zones"]
+    assert z1 - z0 > 0.2
+    S = np.linspace(z0 + 0.3 * (z1 - z0), z1 - 0.3 * (z1 - z0), 41)
+    c = sysm.model.contact(sysm.disc, x, p, S=S)
+    alpha = 1 + c["axial_force"] / rod.EA
+    slope = np.polyfit(S, c["axial_force"], 1)[0]
+    assert slope == pytest.approx(np.mean(-rod.w * a / alpha), rel=1e-5)
+    beta = np.arctan(a)
+    assert c["pressure"][20] == pytest.approx(rod.w * np.cos(beta) / alpha[20], rel=1e-4)
+    assert np.all(np.abs(c["gap"]) < 1e-7)
+
+
+def test_a_varying_clearance_round_trips_and_is_validated(tmp_path, capsys):
+    w = Wall(((0.0, 0.01), (0.5, 0.02), (1.0, 0.01)), eps=1e-4)
+    assert Wall.from_spec(w.spec) == w and w.c_max == 0.02 and w.c_min == 0.01
+    assert w.slope_at(np.array([-1.0, 0.25, 0.75, 2.0])).tolist() == pytest.approx([0.0, 0.02, -0.02, 0.0])
+    for bad, message in ((((0.0, 0.01),), "at least two"), (((0.0, 0.01), (0.0, 0.02)), "strictly increasing"),
+                         (((0.0, 0.01), (1.0, -0.02)), "positive"), ("wide", "table of (S, c) pairs")):
+        with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+            Wall(bad)
+    f = tmp_path / "taper.toml"
+    f.write_text("[conduit]\nclearance = [[0, 0.002], [1, 0.004]]\neps = 1e-5\n")
+    out = tmp_path / "t.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--conduit", str(f), "--out", str(out),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    with h5py.File(out, "r") as h:
+        assert Wall.from_spec(h.attrs["conduit"]).clearance == ((0.0, 0.002), (1.0, 0.004))
+        assert h["contact"].attrs["clearance"].tolist() == [[0.0, 0.002], [1.0, 0.004]]
+    code, _, err = run(["shape", str(out), "--output", str(tmp_path / "s.png")], capsys)
+    assert code == 0, err
+    f.write_text("[conduit]\nclearance = [[0, 0.002], [0, 0.004]]\n")
+    code, _, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
+    assert code == 2 and "strictly increasing" in err and "Traceback" not in err

@@ -368,7 +368,8 @@ def _conduit(path, rod):
         raise UserError(f"--conduit {path}: unknown key(s) {', '.join(unknown)} in [conduit] (known: clearance, "
                         f"eps, force_scale, contact_level, reference)")
     if "clearance" not in sec:
-        raise UserError(f"--conduit {path}: [conduit] needs clearance = C (conduit radius minus rod radius)")
+        raise UserError(f"--conduit {path}: [conduit] needs clearance = C (conduit radius minus rod radius) "
+                        f"or clearance = [[S0, C0], [S1, C1], ...] (varying linearly between stations S)")
     try:
         wall = Wall(**{key: sec[key] for key in ("clearance", "eps", "force_scale", "contact_level") if key in sec})
     except (TypeError, ValueError) as exc:
@@ -974,7 +975,7 @@ def shape(file, points, branch, output):
     curves, contacts = [], []
     S = np.linspace(*model.interval, 400)
     # inside a conduit the deflections and the clearance are drawn magnified (else a thin pipe is a line)
-    magnify = 1.0 if wall is None else max(1.0, 0.12 * model.interval[1] / wall.clearance)
+    magnify = 1.0 if wall is None else max(1.0, 0.12 * model.interval[1] / wall.c_max)
     jet = model.curve.jet(S)
     for label in points:
         try:
@@ -998,9 +999,11 @@ def shape(file, points, branch, output):
         theta = np.linspace(0.0, 2 * np.pi, 25)
         St = np.linspace(*model.interval, 121)
         jt = model.curve.jet(St)
-        ring = magnify * wall.clearance * (jt.K[0][:, :, None] * np.cos(theta) + jt.K[1][:, :, None] * np.sin(theta))
+        cS = np.broadcast_to(wall.clearance_at(St), St.shape)[:, None]
+        ring = magnify * cS * (jt.K[0][:, :, None] * np.cos(theta) + jt.K[1][:, :, None] * np.sin(theta))
         tube = tuple(jt.R[a][:, None] + ring[a] for a in range(3))
-        title += f"\nconduit of clearance {wall.clearance:g}" + (
+        title += (f"\nconduit of clearance {wall.c_min:g} to {wall.c_max:g}" if wall.varying else
+                  f"\nconduit of clearance {wall.clearance:g}") + (
             f"; deflections and clearance drawn ×{magnify:.3g}" if magnify > 1 else "")
     try:
         shape_figure(curves, output, title, reference=jet.R if not model.constant_frame or wall else None,

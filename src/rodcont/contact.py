@@ -1,7 +1,8 @@
 """Unilateral contact with the wall of a conduit: a rod inside a tube around its reference curve.
 
-The conduit is the reference curve ``R(S)`` plus a constant clearance ``c``
-(radius of the conduit minus radius of the rod). In the Eulerian description
+The conduit is the reference curve ``R(S)`` plus a clearance ``c`` (radius of
+the conduit minus radius of the rod), constant or given at stations ``S_i`` and
+varying linearly between them. In the Eulerian description
 the wall constraint is local in ``S``: the rod's centreline
 ``r = R + Delta1 K1 + Delta2 K2`` must keep ``|Delta(S)| <= c``. The wall
 pushes with a normal force per unit reference length ``p(S) >= 0`` along
@@ -54,13 +55,15 @@ class Wall:
     converge like ``eps^(1/3)``; the force on it converges like ``eps``.
     """
 
-    clearance: float
+    clearance: float | tuple
     eps: float = 1e-5
     force_scale: float | None = None
     contact_level: float = 0.5
 
     def __post_init__(self):
-        for name in ("clearance", "eps", "contact_level"):
+        if not isinstance(self.clearance, (int, float, np.integer, np.floating)) or isinstance(self.clearance, bool):
+            object.__setattr__(self, "clearance", _clearance_table(self.clearance))
+        for name in ("eps", "contact_level") + (() if self.varying else ("clearance",)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
                     or not math.isfinite(v) or not v > 0:
@@ -70,8 +73,7 @@ class Wall:
         if not self.eps >= 1e-12:
             raise ValueError(f"conduit eps must be at least 1e-12 (a smaller one makes the wall stiffer than "
                              f"double precision resolves), got {self.eps!r}")
-        for name in ("clearance", "force_scale"):
-            v = getattr(self, name)
+        for name, v in (("clearance", self.c_max), ("clearance", self.c_min), ("force_scale", self.force_scale)):
             if v is not None and not 1e-100 <= v <= 1e100:
                 raise ValueError(f"conduit {name} = {v!r} is outside the range rodcont computes with "
                                  f"(1e-100 .. 1e100): change units")
@@ -80,29 +82,78 @@ class Wall:
                               or not math.isfinite(P) or not P > 0):
             raise ValueError(f"conduit force_scale must be a positive number, got {P!r}")
 
+    @property
+    def varying(self) -> bool:
+        """Whether the clearance varies along the conduit (a table of ``(S, c)``)."""
+        return isinstance(self.clearance, tuple)
+
+    @property
+    def c_max(self) -> float:
+        return max(c for _, c in self.clearance) if self.varying else float(self.clearance)
+
+    @property
+    def c_min(self) -> float:
+        return min(c for _, c in self.clearance) if self.varying else float(self.clearance)
+
+    def clearance_at(self, S):
+        """``c(S)``: the constant clearance, or the table interpolated linearly in ``S`` (constant beyond its
+        ends)."""
+        if not self.varying:
+            return float(self.clearance)
+        t = np.asarray(self.clearance, float)
+        return np.interp(np.real(np.asarray(S, float)), t[:, 0], t[:, 1])
+
     def scale(self, w: float, EI: float, L: float) -> float:
-        """``P``: the given force scale, else ``w``, else ``EI c / L^4``."""
+        """``P``: the given force scale, else ``w``, else ``EI c / L^4`` (the largest ``c``)."""
         if self.force_scale is not None:
             return float(self.force_scale)
-        return float(w) if w > 0 else float(EI) * self.clearance / float(L) ** 4
+        return float(w) if w > 0 else float(EI) * self.c_max / float(L) ** 4
 
-    def pressure(self, D1, D2, P: float):
-        """Contact force per unit ``S``, ``p >= 0``, at deflections ``(D1, D2)`` (analytic: complex-step safe)."""
-        c = self.clearance
+    def pressure(self, D1, D2, P: float, S=None):
+        """Contact force per unit ``S``, ``p >= 0``, at deflections ``(D1, D2)`` (analytic: complex-step safe);
+        ``S``: where, for a varying clearance."""
+        c = self._c(S)
         gamma = (c * c - (D1 * D1 + D2 * D2)) / (2.0 * c * self.eps * c)
         root = np.sqrt(gamma * gamma + 4.0)
         # the two forms of the same root of p^2/k + g p - mu = 0, each free of cancellation on its side
         return np.where(np.real(gamma) > 0, (2.0 * P) / (root + gamma), 0.5 * P * (root - gamma))
 
-    def force(self, D1, D2, P: float):
-        """``q = -p Delta / c``: the wall's force per unit ``S`` on the rod, components on ``K1, K2``."""
-        f = -self.pressure(D1, D2, P) / self.clearance
-        return f * D1, f * D2
+    def force(self, D1, D2, P: float, S=None):
+        """The wall's force per unit ``S`` on the rod, components on ``K1, K2, K3``: ``q = -p Delta / c``
+        across, and, where the clearance varies, ``p c'(S) |Delta|^2 / c^2`` along the axis (the wall of a
+        widening conduit is a cone: its normal leans by ``c'``, so a frictionless wall pushes the rod toward
+        the wide end; exact for a straight axis, to ``O(c kappa)`` on a curved one). The force acts through
+        the centreline: the moment ``a p c'`` of a rod of radius ``a`` on a leaning wall is left out."""
+        c = self._c(S)
+        p = self.pressure(D1, D2, P, S)
+        f = -p / c
+        if not self.varying:
+            return f * D1, f * D2, 0.0
+        return f * D1, f * D2, p * self.slope_at(S) * (D1 * D1 + D2 * D2) / (c * c)
+
+    def slope_at(self, S):
+        """``c'(S)`` of a varying clearance (piecewise constant; 0 beyond the table's ends)."""
+        t = np.asarray(self.clearance, float)
+        S = np.real(np.asarray(S, float))
+        slopes = np.append(np.diff(t[:, 1]) / np.diff(t[:, 0]), 0.0)
+        i = np.searchsorted(t[:, 0], S, side="right") - 1
+        return np.where(i < 0, 0.0, slopes[np.clip(i, 0, slopes.size - 1)])
+
+    def _c(self, S):
+        if not self.varying:
+            return float(self.clearance)
+        if S is None:
+            raise ValueError("a varying clearance needs the points S")
+        return self.clearance_at(S)
 
     @property
     def spec(self) -> str:
         """A one-line description stored in branch files and compared on restart."""
-        s = f"clearance={float(self.clearance)!r},eps={float(self.eps)!r}"
+        if self.varying:
+            table = ";".join(f"{a!r}:{c!r}" for a, c in self.clearance)
+            s = f"clearance={table},eps={float(self.eps)!r}"
+        else:
+            s = f"clearance={float(self.clearance)!r},eps={float(self.eps)!r}"
         if self.force_scale is not None:
             s += f",force_scale={float(self.force_scale)!r}"
         if self.contact_level != 0.5:
@@ -114,8 +165,30 @@ class Wall:
         fields = {}
         for part in str(spec).split(","):
             key, _, val = part.partition("=")
-            fields[key.strip()] = float(val)
+            if key.strip() == "clearance" and ":" in val:
+                fields["clearance"] = tuple(tuple(float(u) for u in row.split(":")) for row in val.split(";"))
+            else:
+                fields[key.strip()] = float(val)
         return cls(**fields)
+
+
+def _clearance_table(table) -> tuple:
+    """``((S0, c0), (S1, c1), ...)`` from a sequence of pairs: at least two, ``S`` strictly increasing,
+    every ``c`` positive and finite (a conduit whose clearance varies linearly between the stations)."""
+    try:
+        rows = tuple((float(a), float(c)) for a, c in table)
+    except (TypeError, ValueError):
+        raise ValueError(f"conduit clearance must be a positive number or a table of (S, c) pairs, "
+                         f"got {table!r}") from None
+    if len(rows) < 2:
+        raise ValueError(f"a conduit clearance table needs at least two (S, c) rows, got {len(rows)}")
+    S = np.array([a for a, _ in rows])
+    c = np.array([v for _, v in rows])
+    if not (np.all(np.isfinite(S)) and np.all(np.diff(S) > 0)):
+        raise ValueError("the S of a conduit clearance table must be finite and strictly increasing")
+    if not (np.all(np.isfinite(c)) and np.all(c > 0)):
+        raise ValueError("every clearance of a conduit clearance table must be a positive number")
+    return rows
 
 
 def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tuple[float, float, float]]:

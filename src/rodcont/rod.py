@@ -218,8 +218,8 @@ class EulerianRod:
             if not isinstance(wall, Wall):
                 raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
             kmax = self.curve.max_curvature() if not self.curve.constant_frame else 0.0
-            if wall.clearance * kmax >= 1.0:
-                raise ValueError(f"the conduit overlaps itself: clearance {wall.clearance:g} times the largest "
+            if wall.c_max * kmax >= 1.0:
+                raise ValueError(f"the conduit overlaps itself: clearance {wall.c_max:g} times the largest "
                                  f"curvature of its axis ({kmax:g}) must be below 1")
             # fixed here, not read from the parameters: a trace in w or EI keeps one contact law
             self.contact_scale = wall.scale(self.rod.w, self.rod.EI, self.rod.L)
@@ -319,8 +319,8 @@ class EulerianRod:
         EF = Fp + (w * n / alpha) * self.gK[:, None]
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
-            q1, q2 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2], EM[0], EM[1], mp / GJ])
+            q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
+            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def jacobian(self, S, z, p):
@@ -543,8 +543,8 @@ class EulerianRod:
         EF = Ft + (w * n / alpha) * gK
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
-            q1, q2 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2], EM[0], EM[1], mp / GJ])
+            q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
+            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
         return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
 
     def _axial_curved(self, S, z, p):
@@ -656,9 +656,8 @@ class EulerianRod:
         S = np.asarray(S, float)
         z = (disc.jet_matrix(S) @ x).reshape(self.problem.jet_size, S.size)
         D1, D2 = z[Jet.D1[0]], z[Jet.D2[0]]
-        c = self.wall.clearance
-        gap = c - np.hypot(D1, D2)
-        pressure = self.wall.pressure(D1, D2, self.contact_scale)
+        gap = self.wall.clearance_at(S) - np.hypot(D1, D2)
+        pressure = self.wall.pressure(D1, D2, self.contact_scale, S)
         m, alpha, n, d3 = self._axial_quantities(S, z, p)
         axial = _dot(z[Jet.F], d3)
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
