@@ -721,3 +721,15 @@ def test_a_varying_clearance_round_trips_and_is_validated(tmp_path, capsys):
     f.write_text("[conduit]\nclearance = [[0, 0.002], [0, 0.004]]\n")
     code, _, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", str(f)], capsys)
     assert code == 2 and "strictly increasing" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("weight", [dict(w=0.0), dict(w=0.05, weight_direction=(1.0, 0.0, 0.0))])
+def test_a_rod_symmetric_about_its_axis_is_told_why_its_crossings_hide(weight):
+    """A weightless rod (or one weighing along the axis) twisted in a straight pipe: turned about the axis as a
+    whole it keeps its energy, so its eigenvalues cross zero in pairs at the critical twists and the
+    determinant test sees none. The warning says so and how to break the symmetry (not a smaller step,
+    which cannot separate them)."""
+    from rodcont.drivers.trace import trace
+    with pytest.warns(RuntimeWarning, match="symmetric about its axis and its eigenvalues cross in pairs"):
+        b = trace(rod=RodParameters(**weight), T=-20.0, wall=Wall(0.01, eps=1e-2, force_scale=50.0), phi_max=20.0)
+    assert b.missed_crossings and (b.missed_crossings[0][3] - b.missed_crossings[0][2]) % 2 == 0

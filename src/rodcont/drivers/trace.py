@@ -243,8 +243,12 @@ class StabilityCount:
                                   f"{system.param} = {self.ref[1]:.10g} and {pt.p:.10g} across "
                                   f"{self.crossings} located fold(s) or branch point(s): more eigenvalues "
                                   f"crossed zero than were seen (the branch-point test watches a determinant's "
-                                  f"sign, which two crossings in one step leave unchanged); trace that interval "
-                                  f"with a smaller --ds-max to separate them", RuntimeWarning, stacklevel=2)
+                                  f"sign, which two crossings in one step leave unchanged); "
+                                  + ("here the rod is symmetric about its axis and its eigenvalues cross in "
+                                     "pairs: a weight across the axis, however small, separates them"
+                                     if _symmetric_about_axis(system) else
+                                     "trace that interval with a smaller --ds-max to separate them"),
+                                  RuntimeWarning, stacklevel=2)
                 self.ref, self.crossings = (n, float(pt.p)), 0
             self.last, self.since = n, 0
             self.fresh = special and (pt.kind != Kind.START or self.ref is None)
@@ -501,12 +505,34 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         reason = StopReason(Stop.EVENT, "interrupted")
         raise
     finally:
-        branch.stop_reason = reason.message
+        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status in (
+            Stop.STEP_TOO_SMALL, Stop.START_FAILED) or "no converged solution" in reason.message else "")
         branch.steps += steps
         branch.newton_iterations += iterations
         branch.elapsed += time.perf_counter() - t_start
         recorder.sync()
     return branch
+
+
+def _symmetric_about_axis(system: RodSystem) -> bool:
+    """Whether the rod can be turned about a straight axis as a whole: its weight does not point across
+    (weightless, or weighing along the axis) and the reference is straight (a conduit around it, of any
+    clearance profile, turns with it). Turned with its material frame turned back about its tangent, an
+    isotropic rod keeps its energy and its clamps: equilibria off the axis come in circles (a singular
+    Jacobian on them) and eigenvalues in pairs (a double crossing at each bifurcation from the axis)."""
+    model = system.model
+    if not model.constant_frame:
+        return False
+    gK = np.asarray(model.gK, float)  # the weight's direction on the frame (K1, K2 across, K3 along)
+    return system.rod.w == 0 or float(np.hypot(gK[0], gK[1]) / np.linalg.norm(gK)) <= 1e-12
+
+
+def _symmetry_hint(system: RodSystem) -> str:
+    if not _symmetric_about_axis(system):
+        return ""
+    return (" (a rod whose weight does not point across a straight reference has equilibria off its axis "
+            "in circles, turned about the axis, with a singular Jacobian: give it a weight across the axis, "
+            "however small, to pick the plane)")
 
 
 def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
