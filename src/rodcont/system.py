@@ -114,8 +114,10 @@ class RodSystem:
             out[self.param] = float(value)
         if self.wall is not None:
             c = self.model.contact(self.disc, x, p)
+            from .contact import zone_test
+            level = self.wall.contact_level * self.model.contact_scale
             out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
-                       max_pressure=float(c["pressure"].max()))
+                       max_pressure=float(c["pressure"].max()), zone_test=zone_test(c["pressure"], level))
         return out
 
     def arclength_scale(self):

@@ -375,9 +375,10 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
               Event("the stretch factor reached 0 (compressed through zero length: not physical)",
                     lambda q: q.data["alpha_min"], stop=True, tol=1e-6)]
     if system.wall is not None:
-        # the rod touches the wall (or leaves it) where its largest pressure crosses the contact level
-        level = system.wall.contact_level * system.model.contact_scale
-        events.append(Event("contact onset or lift-off", lambda q: q.data["max_pressure"] - level, tol=1e-9))
+        # the rod touches the wall or leaves it, or two contact zones merge or one splits, where an extremum
+        # of the pressure crosses the contact level (rodcont.contact.zone_test)
+        events.append(Event("contact onset, lift-off, merge or split of zones", lambda q: q.data["zone_test"],
+                            tol=1e-9))
     if o.stretch_max is not None:
         events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
                             lambda q: o.stretch_max - q.data["stretch"], stop=True))
