@@ -259,3 +259,11 @@ def test_a_restart_echoes_the_start_files_problem_not_the_defaults(tmp_path, cap
     echo = [line for line in out.splitlines() if line.startswith("#")]
     assert any(f"those of --start {a}:1" in line for line in echo)
     assert not any(line.split("=")[0].strip("# ") in ("EI", "w", "gamma", "reference", "L") for line in echo)
+
+
+def test_a_restart_refuses_another_k_instead_of_ignoring_it(tmp_path, capsys):
+    a = tmp_path / "a.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--out", str(a), "--quiet"], capsys)
+    assert code == 0, err
+    code, _, err = run(["trace", "--start", f"{a}:1", "--k", "7", "--out", str(tmp_path / "b.h5")], capsys)
+    assert code == 2 and "--k 7 differs from the start file's k = 5" in err

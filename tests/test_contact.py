@@ -770,3 +770,21 @@ def test_a_contact_zone_that_splits_is_located_and_tends_to_the_opening_of_the_f
         assert between.min() == pytest.approx(wall.contact_level * 10.0, rel=1e-4)  # (the samples, not the parabola)
         err[eps] = t["T"][i] / T_flat - 1
     assert 0 < err[1e-6] < err[1e-4] / 3 and err[1e-6] < 0.1
+
+
+def test_clearance_stations_are_mesh_breakpoints():
+    """The slope of a clearance table jumps at its stations (the axial wall force with it): they are
+    breakpoints of every mesh, uniform (discretise) or adapted (RodSystem.conform), like a well's stations;
+    without them a taper shorter than the spacing of the Gauss points was not seen at all. Stations too
+    close for a finite slope are refused."""
+    from rodcont.system import RodSystem
+    wall = Wall(((0.0, 0.004), (0.49, 0.004), (0.51, 0.002), (1.0, 0.002), (2.0, 0.001)), eps=1e-5)
+    for N in (3, 20, 41):
+        b = RodSystem(RodParameters(), gamma=1.0, wall=wall, N=N).disc.breakpoints
+        assert b.size == N + 1 and {0.49, 0.51} <= set(b.round(15)) and b[-1] == 1.0  # (2.0 is beyond the span)
+    system = RodSystem(RodParameters(), gamma=1.0, wall=wall, N=20)
+    assert {0.49, 0.51} <= set(system.conform(np.linspace(0, 1, 7)).round(15))
+    eq = solve_equilibrium(1.0, 0.0, RodParameters(), wall=wall, N=20)
+    assert {0.49, 0.51} <= set(eq.system.disc.breakpoints.round(15))
+    with pytest.raises(ValueError, match="too close"):
+        Wall(((0.0, 0.01), (5e-324, 0.02)))

@@ -650,6 +650,9 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
             raise UserError(f"{names} differ from the start file's; a restart keeps its rod and tension: to change "
                             f"them, trace in that parameter from the point (--start {start} --param "
                             f"{'gamma' if 'gamma' in changed else changed[0]} --range A B)")
+        if _explicit("k") and k != int(data.attrs["k"]):
+            raise UserError(f"--k {k} differs from the start file's k = {int(data.attrs['k'])}: a restart keeps "
+                            f"its spline degree (--N chooses another mesh)")
         if switch and pt["kind"] != "branch_point":
             raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
         _check_out(out, [data.path], overwrite)

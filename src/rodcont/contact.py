@@ -188,6 +188,9 @@ def _clearance_table(table) -> tuple:
         raise ValueError("the S of a conduit clearance table must be finite and strictly increasing")
     if not (np.all(np.isfinite(c)) and np.all(c > 0)):
         raise ValueError("every clearance of a conduit clearance table must be a positive number")
+    with np.errstate(all="ignore"):
+        if not np.all(np.isfinite(np.diff(c) / np.diff(S))):
+            raise ValueError("the stations of a conduit clearance table are too close for its slope to be finite")
     return rows
 
 
@@ -212,27 +215,3 @@ def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tup
     return [(float(S[a]), float(S[b]), float(cum[bounds[i + 1]] - cum[bounds[i]]))
             for i, (a, b) in enumerate(runs)]
 
-
-def zone_test(pressure: np.ndarray, level: float) -> float:
-    """A test function whose sign changes exactly when the contact zones change: a zone appears (contact
-    onset), vanishes (lift-off), or two merge or one splits.
-
-    The zones are the runs where ``q = pressure - level >= 0`` (on a fine grid, the clamps' ends below the
-    level); they change when an interior extremum of ``q`` passes through 0: a maximum for onset and
-    lift-off, a minimum between two zones for a merge or a split. The function is the product of the signs
-    of all extremum values (each refined by a parabola through its three samples) times the smallest of their
-    magnitudes: one extremum crossing 0 flips the sign, while extrema are born and die in pairs of nearly
-    equal value, which leaves it unchanged. So the tracker locates all four kinds of change like a fold.
-    """
-    q = np.asarray(pressure, float) - float(level)
-    d = np.diff(q)
-    i = np.flatnonzero(d[:-1] * d[1:] < 0) + 1
-    if i.size == 0:
-        return float(q.max())
-    a, b, c = q[i - 1], q[i], q[i + 1]
-    curv = a - 2.0 * b + c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        vals = np.where(curv != 0, b - (c - a) ** 2 / (8.0 * curv), b)
-    if np.any(vals == 0):
-        return 0.0
-    return float(np.prod(np.sign(vals)) * np.min(np.abs(vals)))

@@ -327,40 +327,48 @@ class ReferenceCurve:
         return b[jump > 1e-6 * scale]
 
     def mesh(self, N: int) -> np.ndarray:
-        """``N`` subintervals containing every breakpoint: each piece gets a share proportional to its length
-        (at least one), uniform within the piece."""
-        b = self.breakpoints
-        pieces = b.size - 1
-        N = int(N)
-        if N < pieces:
-            raise ValueError(f"N = {N} subintervals cannot hold the {pieces} pieces of the reference curve "
-                             f"(its breakpoints): use N >= {pieces}")
-        h = np.diff(b)
-        share = h / h.sum() * N
-        n = np.maximum(np.floor(share).astype(int), 1)
-        while n.sum() < N:  # largest remainders first
-            n[np.argmax(share - n)] += 1
-        while n.sum() > N:
-            i = np.argmax(np.where(n > 1, n - share, -np.inf))
-            n[i] -= 1
-        return np.concatenate([np.linspace(b[i], b[i + 1], n[i] + 1)[:-1] for i in range(pieces)] + [b[-1:]])
+        """``N`` subintervals containing every breakpoint (:func:`mesh_through`)."""
+        return mesh_through(self.breakpoints, N, "pieces of the reference curve (its breakpoints)")
 
     def conform(self, mesh: np.ndarray, min_fraction: float = 0.25) -> np.ndarray:
-        """``mesh`` with every breakpoint of the curve inserted (mesh points closer to one than
-        ``min_fraction`` of the local spacing are dropped): for adapted meshes."""
-        m = np.asarray(mesh, float)
-        b = self.breakpoints
-        inner = b[1:-1]
-        if inner.size == 0:
-            return m
-        keep = np.ones(m.size, bool)
-        h = np.diff(m)
-        for s in inner:
-            i = int(np.clip(np.searchsorted(m, s) - 1, 0, h.size - 1))
-            close = np.abs(m - s) < min_fraction * h[i]
-            close[[0, -1]] = False
-            keep &= ~close
-        return np.union1d(m[keep], b)
+        """``mesh`` with every breakpoint of the curve inserted (:func:`conform_to`)."""
+        return conform_to(mesh, self.breakpoints, min_fraction)
+
+
+def mesh_through(b: np.ndarray, N: int, what: str = "pieces") -> np.ndarray:
+    """``N`` subintervals containing every station of ``b`` (its ends included): each piece gets a share
+    proportional to its length (at least one), uniform within the piece."""
+    b = np.asarray(b, float)
+    pieces = b.size - 1
+    N = int(N)
+    if N < pieces:
+        raise ValueError(f"N = {N} subintervals cannot hold the {pieces} {what}: use N >= {pieces}")
+    h = np.diff(b)
+    share = h / h.sum() * N
+    n = np.maximum(np.floor(share).astype(int), 1)
+    while n.sum() < N:  # largest remainders first
+        n[np.argmax(share - n)] += 1
+    while n.sum() > N:
+        i = np.argmax(np.where(n > 1, n - share, -np.inf))
+        n[i] -= 1
+    return np.concatenate([np.linspace(b[i], b[i + 1], n[i] + 1)[:-1] for i in range(pieces)] + [b[-1:]])
+
+
+def conform_to(mesh: np.ndarray, b: np.ndarray, min_fraction: float = 0.25) -> np.ndarray:
+    """``mesh`` with every interior station of ``b`` inserted (mesh points closer to one than
+    ``min_fraction`` of the local spacing are dropped): for adapted meshes."""
+    m = np.asarray(mesh, float)
+    inner = np.asarray(b, float)[1:-1]
+    if inner.size == 0:
+        return m
+    keep = np.ones(m.size, bool)
+    h = np.diff(m)
+    for s in inner:
+        i = int(np.clip(np.searchsorted(m, s) - 1, 0, h.size - 1))
+        close = np.abs(m - s) < min_fraction * h[i]
+        close[[0, -1]] = False
+        keep &= ~close
+    return np.union1d(m[keep], inner)
 
 
 # --------------------------------------------------------------------------

@@ -260,6 +260,13 @@ class EulerianRod:
         if wall is not None:  # the contact force reads the deflection itself
             unused = (Jet.PHI[0],)
         self.interval = interval
+        # mesh breakpoints: a well's stations (its curvature jumps) and a clearance table's (its slope jumps)
+        stations = [interval[0], interval[1]]
+        if not self.constant_frame:
+            stations += list(self.curve.breakpoints)
+        if wall is not None and wall.varying:
+            stations += [S for S, _ in wall.clearance if interval[0] < S < interval[1]]
+        self.stations = np.unique(np.asarray(stations, float))
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
                                  interval=interval, params=PARAMS, names=FIELDS,
                                  jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
@@ -473,14 +480,13 @@ class EulerianRod:
             gK = np.einsum("ain,i->an", j.K, self.g)
             hit = (np.ascontiguousarray(j.k[:, :, inv]), np.ascontiguousarray(gK[:, inv]), bool(np.any(j.k[2])))
             size = hit[0].nbytes + hit[1].nbytes + len(key)
+            if size > self.curve_cache_bytes:  # larger than the whole budget: not kept, nothing evicted for it
+                return _tiled(hit, reps)
             self._curve_cache_size += size
             while cache and self._curve_cache_size > self.curve_cache_bytes:
                 old_key = next(iter(cache))  # the least recently used
                 old = cache.pop(old_key)
                 self._curve_cache_size -= old[0].nbytes + old[1].nbytes + len(old_key)
-            if self._curve_cache_size > self.curve_cache_bytes:  # larger than the whole budget: not kept
-                self._curve_cache_size -= size
-                return _tiled(hit, reps)
         cache[key] = hit  # (re)inserted last: the most recently used
         return _tiled(hit, reps)
 
@@ -572,8 +578,10 @@ class EulerianRod:
             if not (isinstance(N, (int, np.integer)) and N >= 1):
                 raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N!r}")
             breakpoints = int(N)
-            if not self.constant_frame and self.curve.breakpoints.size > 2:
-                breakpoints = self.curve.mesh(int(N))
+            if self.stations.size > 2:
+                from .curves import mesh_through
+                breakpoints = mesh_through(self.stations, int(N), "pieces between the stations of the reference "
+                                                                 "curve and the conduit's clearance")
         return Collocation(self.problem, breakpoints, k)
 
     def initial_guess(self, disc: Collocation, T: float) -> np.ndarray:

@@ -114,10 +114,8 @@ class RodSystem:
             out[self.param] = float(value)
         if self.wall is not None:
             c = self.model.contact(self.disc, x, p)
-            from .contact import zone_test
-            level = self.wall.contact_level * self.model.contact_scale
             out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
-                       max_pressure=float(c["pressure"].max()), zone_test=zone_test(c["pressure"], level))
+                       max_pressure=float(c["pressure"].max()))
         return out
 
     def arclength_scale(self):
@@ -156,9 +154,9 @@ class RodSystem:
         return bool(getattr(self.curve, "constant_frame", False))
 
     def conform(self, breakpoints) -> np.ndarray:
-        """A mesh the reference curve accepts (breakpoints at its stations, if it has any)."""
-        conform = getattr(self.curve, "conform", None)
-        return np.asarray(breakpoints if conform is None else conform(np.asarray(breakpoints, float)), float)
+        """A mesh with breakpoints at the stations of the reference curve and of the clearance, if any."""
+        from .curves import conform_to
+        return np.asarray(conform_to(np.asarray(breakpoints, float), self.model.stations), float)
 
     def straight_state(self, phi_L: float) -> np.ndarray:
         """The exact straight state ``Delta = 0``, ``phi = phi_L S / L``, ``F = T K3`` (exact for ``w = 0``)."""

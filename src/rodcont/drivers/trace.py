@@ -29,7 +29,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..branch import Branch
-from ..continuation import ContinuationSettings, Event, Kind, Point, Stop, StopContinuation, StopReason, Tracker
+from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, Stop, StopContinuation,
+                            StopReason, Tracker)
 from ..mesh import ErrorEstimator, adapted_mesh, halved
 from ..rod import RodParameters
 from ..system import SYSTEM_PARAMS, RodSystem, check_number
@@ -374,11 +375,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6),
               Event("the stretch factor reached 0 (compressed through zero length: not physical)",
                     lambda q: q.data["alpha_min"], stop=True, tol=1e-6)]
-    if system.wall is not None:
-        # the rod touches the wall or leaves it, or two contact zones merge or one splits, where an extremum
-        # of the pressure crosses the contact level (rodcont.contact.zone_test)
-        events.append(Event("contact onset, lift-off, merge or split of zones", lambda q: q.data["zone_test"],
-                            tol=1e-9))
+    # inside a conduit: contact onset, lift-off, merges and splits (ZoneChangeDetector, per segment)
     if o.stretch_max is not None:
         events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
                             lambda q: o.stretch_max - q.data["stretch"], stop=True))
@@ -400,6 +397,8 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             sysm = seg.system
             tracker = Tracker(sysm, seg.x, seg.p, settings, monitor=sysm.outputs, events=events,
                               tangent0=seg.tangent, exact_start=seg.exact)
+            if sysm.wall is not None:
+                tracker.detectors.append(ZoneChangeDetector(sysm))
             if step_in_use is not None:
                 # not the initial ds: where a stiff stretch forced small steps, a fresh segment that
                 # starts with ds = 0.1 leaps past it, onto another branch (seen at a contact onset)
@@ -506,13 +505,85 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         reason = StopReason(Stop.EVENT, "interrupted")
         raise
     finally:
-        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status in (
-            Stop.STEP_TOO_SMALL, Stop.START_FAILED) or "no converged solution" in reason.message else "")
+        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status == Stop.STEP_TOO_SMALL
+                                               or "no converged solution" in reason.message else "")
         branch.steps += steps
         branch.newton_iterations += iterations
         branch.elapsed += time.perf_counter() - t_start
         recorder.sync()
     return branch
+
+
+class ZoneChangeDetector(Detector):
+    """Contact zones that appear (onset), vanish (lift-off), merge or split within a step, located like folds.
+
+    The zones are the runs where the wall pressure is at least the contact level (on the contact grid of
+    the mesh, 16 samples per subinterval). A step whose zone count changes is searched for the first
+    stretch of the grid that changed sides; the change is located where the pressure there crosses the
+    level: its largest value over the stretch for a zone that appears or lifts off, its smallest for the
+    gap of a merge or the dip of a split (both continuous along the branch). A second change within the
+    same step is not located (the trace warns), nor one that leaves the count unchanged (a zone that
+    appears as another lifts off).
+    """
+
+    name = "contact onset, lift-off, merge or split of zones"
+
+    def __init__(self, system: RodSystem, tol: float = 1e-9):
+        self.system, self.tol = system, tol
+        self.level = system.wall.contact_level * system.model.contact_scale
+
+    def _pressure(self, pt: Point) -> np.ndarray:
+        sysm = self.system
+        c = sysm.model.contact(sysm.disc, pt.x, sysm.params(pt.p))
+        self.S = c["S"]
+        return c["pressure"]
+
+    def _mirrors(self, a, b) -> bool:
+        """Whether two runs of the grid are mirror images about mid-span (a symmetric rod's pair, which
+        changes at one parameter: one located point stands for both)."""
+        S = self.S
+        h = float(np.max(np.diff(S)))
+        return abs(S[a[0]] + S[a[1]] + S[b[0]] + S[b[1]] - 2 * (S[0] + S[-1])) <= 4 * h
+
+    def check(self, tracker, base, new, ds):
+        n0, n1 = base.data.get("contact_zones"), new.data.get("contact_zones")
+        if n0 is None or n1 is None or n0 == n1:
+            return []
+        q0, q1 = self._pressure(base) - self.level, self._pressure(new) - self.level
+        on0, on1 = q0 >= 0, q1 >= 0
+        topological = []  # (first, last, peak): the runs of samples whose change alters the zones
+        for flipped in (on1 & ~on0, on0 & ~on1):
+            idx = np.flatnonzero(flipped)
+            for run in (np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1) if idx.size else []):
+                a, b = run[0] - 1, run[-1] + 1
+                # its neighbours where the run is a gap: in the base point for a gained run, in the new one
+                # for a lost run
+                side = on0 if on1[run[0]] else on1
+                left = bool(side[a]) if a >= 0 else False
+                right = bool(side[b]) if b < side.size else False
+                if left == right:  # both in contact: a gap closes or a dip opens; both free: a zone comes or goes
+                    topological.append((run[0], run[-1], not left))
+        if not topological:
+            return []
+        lo, hi, peak = topological[0]
+        others = [r for r in topological[1:] if not self._mirrors(topological[0], r)]
+        window = slice(max(lo - 2, 0), min(hi + 3, q0.size))
+
+        def g(pt):
+            q = self._pressure(pt)[window] - self.level
+            return float(q.max() if peak else q.min())
+
+        g0, g1 = g(base), g(new)
+        f = None
+        if g0 * g1 < 0:
+            f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), f"event:{self.name}")
+        if f is None or others:
+            import warnings
+            warnings.warn(f"the contact zones changed from {n0} to {n1} between {self.system.param} = "
+                          f"{base.p:.10g} and {new.p:.10g}" + (" (more than one change in the step)"
+                                                                if others else "")
+                          + ": not all located; a smaller --ds-max separates them", RuntimeWarning, stacklevel=2)
+        return [] if f is None else [Finding(f.ds, f, None)]
 
 
 def _symmetric_about_axis(system: RodSystem) -> bool:
@@ -522,7 +593,7 @@ def _symmetric_about_axis(system: RodSystem) -> bool:
     isotropic rod keeps its energy and its clamps: equilibria off the axis come in circles (a singular
     Jacobian on them) and eigenvalues in pairs (a double crossing at each bifurcation from the axis)."""
     model = system.model
-    if not model.constant_frame:
+    if not model.constant_frame or system.param == "w":  # a trace in w changes the weight along the way
         return False
     gK = np.asarray(model.gK, float)  # the weight's direction on the frame (K1, K2 across, K3 along)
     return system.rod.w == 0 or float(np.hypot(gK[0], gK[1]) / np.linalg.norm(gK)) <= 1e-12
@@ -730,9 +801,10 @@ class _ContactRows:
             x = branch.coefficients[i]
             fine = model.contact(sysm.disc, x, p)
             at = model.contact(sysm.disc, x, p, S=self.S)
+            row = {name: np.asarray(at[name], np.float32) for name in ("pressure", "gap", "axial_force", "torque")}
+            # zones and profile together (a Ctrl-C between them would record the zones twice)
             self.zones.extend((i, a, e, f) for a, e, f in fine["zones"])
-            self.profiles.append({name: np.asarray(at[name], np.float32)
-                                  for name in ("pressure", "gap", "axial_force", "torque")})
+            self.profiles.append(row)
 
     def write(self, writer) -> None:
         """``/contact`` for the rows computed (every point of the branch after :meth:`fill`)."""
