@@ -223,9 +223,13 @@ def test_a_fixed_mesh_that_cannot_resolve_the_start_is_refused_and_an_adaptive_o
 
 
 def test_a_long_span_is_resolved_or_stopped_not_wrong():
-    """--L 10: the sag is deep; every stored point's estimated error is within max_error."""
+    """--L 10: the sag is deep; every stored point's estimated error is within max_error, and the branch
+    stops at the validity guard (it once ran past it to min d3.K3 = 0.005: the located guard point had
+    its mesh refined, and the new segment started past the guard, which then never crossed again)."""
     br = rodcont.trace(0.1, rodcont.RodParameters(L=10.0, w=0.01), max_steps=60)
     assert np.all(np.asarray(br.table["error"]) <= 1e-6 * (1 + 1e-9))
+    assert "validity guard" in br.stop_reason
+    assert np.min(br.table["min_alignment"]) >= 0.05 - 1e-6
 
 
 def test_large_steps_do_not_jump_branches():

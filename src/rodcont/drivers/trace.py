@@ -392,6 +392,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     reason = StopReason(Stop.START_FAILED, "not started")
     steps = iterations = 0
     step_in_use = None  # the step size reached before a remesh: a new segment goes on with it
+    stopping = {f"event:{ev.name}" for ev in events if ev.stop}
     try:
         while True:
             sysm = seg.system
@@ -485,7 +486,11 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 remeshes_here = 0
                 if callback is not None:
                     callback(pt)
-                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None:
+                # not at a point where the trace stops (a guard, a bound): the tracker sets its stop only after
+                # handing the point over, and a new segment from there would start past the guard and never
+                # see it cross again (seen: the validity guard passed on a deep sag, L = 10)
+                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None \
+                        and pt.kind != Kind.BOUND and str(pt.kind) not in stopping:
                     next_seg = _remesh(sysm, pt, err, accuracy, o)
                     break
             steps += tracker.steps
