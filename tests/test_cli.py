@@ -267,3 +267,16 @@ def test_a_restart_refuses_another_k_instead_of_ignoring_it(tmp_path, capsys):
     assert code == 0, err
     code, _, err = run(["trace", "--start", f"{a}:1", "--k", "7", "--out", str(tmp_path / "b.h5")], capsys)
     assert code == 2 and "--k 7 differs from the start file's k = 5" in err
+
+
+def test_a_restart_refuses_a_new_weight_direction_and_span_with_advice_that_runs(tmp_path, capsys):
+    a = tmp_path / "a.h5"
+    code, _, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--out", str(a), "--quiet"], capsys)
+    assert code == 0, err
+    code, _, err = run(["trace", "--start", f"{a}:1", "--weight-direction", "0,1,0", "--out", str(tmp_path / "b.h5")],
+                       capsys)
+    assert code == 2 and "--weight-direction differs" in err and "--param" not in err
+    code, _, err = run(["trace", "--start", f"{a}:1", "--L", "2", "--out", str(tmp_path / "b.h5")], capsys)
+    assert code == 2 and "--L differs" in err and "--param L" not in err
+    code, _, err = run(["trace", "--start", f"{a}:1", "--w", "3", "--out", str(tmp_path / "b.h5")], capsys)
+    assert code == 2 and "--param w --range A B" in err

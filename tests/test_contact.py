@@ -788,3 +788,33 @@ def test_clearance_stations_are_mesh_breakpoints():
     assert {0.49, 0.51} <= set(eq.system.disc.breakpoints.round(15))
     with pytest.raises(ValueError, match="too close"):
         Wall(((0.0, 0.01), (5e-324, 0.02)))
+
+
+def test_clearance_tables_refuse_what_they_cannot_mean():
+    for bad, message in ((((0.0, "0.01"), (1.0, 0.02)), "pairs of numbers"), (((0.0, True), (1.0, 0.02)), "pairs of numbers"),
+                         (((0.0, 0.01), (0.5, 0.01), (0.500000001, 0.02), (1.0, 0.02)), "too close"),
+                         (((0.0, 0.01), (1e-300, 0.02), (1.0, 0.02)), "too close")):
+        with pytest.raises(ValueError, match=message):
+            Wall(bad)
+    # the self-overlap check reads the clearance on the span only (stations beyond it do not count)
+    from rodcont.curves import parse_reference
+    arc = parse_reference("arc:0.6", 1.0)
+    EulerianRod(RodParameters(L=arc.span), arc, Wall(((0.0, 0.01), (1.0, 0.01), (1000.0, 500.0))))
+    with pytest.raises(ValueError, match="overlaps itself"):
+        EulerianRod(RodParameters(L=arc.span), arc, Wall(((0.0, 0.01), (0.5, 5.0), (1.0, 0.01))))
+
+
+def test_a_restart_below_the_euler_load_is_allowed_where_the_trace_reached_it():
+    """A stored point of a trace in T inside a pipe, compressed beyond the Euler load: restarting from it in
+    Phi was refused as 'the untwisted start is not unique', which concerns only a start from the sag."""
+    from rodcont.drivers.trace import trace
+    rod, wall = RodParameters(w=0.1, EA=1e5), Wall(0.01, eps=1e-3, force_scale=10.0)
+    eq = solve_equilibrium(None, 0.0, rod, T=-20.0, wall=wall)
+    b = trace(rod=rod, T=-20.0, wall=wall, param="T", start=(eq.x, -20.0, None),
+              breakpoints=eq.system.disc.breakpoints, phi_L=0.0, p_range=(-60.0, 0.0), direction=-1)
+    assert b.table["T"][-1] == pytest.approx(-60.0) and b.table["contact_zones"][-1] == 1
+    c = trace(rod=rod, T=-60.0, wall=wall, start=(b.coefficients[-1], 0.0, None), breakpoints=b.meshes[-1],
+              phi_max=0.5)
+    assert c.table["phi_L"][-1] == pytest.approx(0.5) and c.table["contact_zones"][0] == 1
+    with pytest.raises(ValueError, match="Euler buckling load"):
+        trace(rod=rod, T=-60.0, wall=wall, phi_max=0.5)  # from the sag: still refused

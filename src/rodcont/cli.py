@@ -643,13 +643,16 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         data, pt, label = _point_spec(start)
         if data.param != "phi_L" and data.attrs.get("kind") == "fold_curve":
             raise UserError(f"{data.path} is a fold curve in {data.param}, not a branch: it cannot start a trace")
-        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L") + (["T"] if click.get_current_context().meta.get(
-            "rodcont.T") is not None else [])
+        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L", "weight_direction") + (
+            ["T"] if click.get_current_context().meta.get("rodcont.T") is not None else [])
         if changed:
-            names = ", ".join("--" + n for n in changed)
-            raise UserError(f"{names} differ from the start file's; a restart keeps its rod and tension: to change "
-                            f"them, trace in that parameter from the point (--start {start} --param "
-                            f"{'gamma' if 'gamma' in changed else changed[0]} --range A B)")
+            names = ", ".join("--" + n.replace("_", "-") for n in changed)
+            traceable = [n for n in ("gamma", "T", "w", "EI", "GJ", "EA") if n in changed]
+            raise UserError(f"{names} {'differs' if len(changed) == 1 else 'differ'} from the start file's; a restart "
+                            f"keeps its rod and tension: "
+                            + (f"to change it, trace in that parameter from the point (--start {start} --param "
+                               f"{traceable[0]} --range A B)" if traceable else
+                               "the span and the weight's direction are fixed along a branch (trace anew)"))
         if _explicit("k") and k != int(data.attrs["k"]):
             raise UserError(f"--k {k} differs from the start file's k = {int(data.attrs['k'])}: a restart keeps "
                             f"its spline degree (--N chooses another mesh)")

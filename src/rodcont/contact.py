@@ -91,6 +91,13 @@ class Wall:
     def c_max(self) -> float:
         return max(c for _, c in self.clearance) if self.varying else float(self.clearance)
 
+    def max_on(self, a: float, b: float) -> float:
+        """The largest clearance over ``[a, b]`` (at the ends or at a station between them)."""
+        if not self.varying:
+            return float(self.clearance)
+        at = [a, b] + [S for S, _ in self.clearance if a < S < b]
+        return float(np.max(self.clearance_at(np.asarray(at, float))))
+
     @property
     def c_min(self) -> float:
         return min(c for _, c in self.clearance) if self.varying else float(self.clearance)
@@ -175,10 +182,14 @@ class Wall:
 def _clearance_table(table) -> tuple:
     """``((S0, c0), (S1, c1), ...)`` from a sequence of pairs: at least two, ``S`` strictly increasing,
     every ``c`` positive and finite (a conduit whose clearance varies linearly between the stations)."""
+    def number(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise TypeError
+        return float(v)
     try:
-        rows = tuple((float(a), float(c)) for a, c in table)
+        rows = tuple((number(a), number(c)) for a, c in table)
     except (TypeError, ValueError):
-        raise ValueError(f"conduit clearance must be a positive number or a table of (S, c) pairs, "
+        raise ValueError(f"conduit clearance must be a positive number or a table of (S, c) pairs of numbers, "
                          f"got {table!r}") from None
     if len(rows) < 2:
         raise ValueError(f"a conduit clearance table needs at least two (S, c) rows, got {len(rows)}")
@@ -186,6 +197,9 @@ def _clearance_table(table) -> tuple:
     c = np.array([v for _, v in rows])
     if not (np.all(np.isfinite(S)) and np.all(np.diff(S) > 0)):
         raise ValueError("the S of a conduit clearance table must be finite and strictly increasing")
+    if np.any(np.diff(S) < 1e-9 * max(1.0, float(np.max(np.abs(S))))):
+        raise ValueError("the stations of a conduit clearance table are too close (closer than 1e-9 of the "
+                         "span): a step in the clearance needs a taper the mesh can resolve")
     if not (np.all(np.isfinite(c)) and np.all(c > 0)):
         raise ValueError("every clearance of a conduit clearance table must be a positive number")
     with np.errstate(all="ignore"):

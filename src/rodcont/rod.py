@@ -218,8 +218,9 @@ class EulerianRod:
             if not isinstance(wall, Wall):
                 raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
             kmax = self.curve.max_curvature() if not self.curve.constant_frame else 0.0
-            if wall.c_max * kmax >= 1.0:
-                raise ValueError(f"the conduit overlaps itself: clearance {wall.c_max:g} times the largest "
+            c_span = wall.max_on(0.0, float(self.curve.length))
+            if c_span * kmax >= 1.0:
+                raise ValueError(f"the conduit overlaps itself: clearance {c_span:g} times the largest "
                                  f"curvature of its axis ({kmax:g}) must be below 1")
             # fixed here, not read from the parameters: a trace in w or EI keeps one contact law
             self.contact_scale = wall.scale(self.rod.w, self.rod.EI, self.rod.L)

@@ -569,6 +569,10 @@ class ZoneChangeDetector(Detector):
                 if left == right:  # both in contact: a gap closes or a dip opens; both free: a zone comes or goes
                     topological.append((run[0], run[-1], not left))
         if not topological:
+            import warnings
+            warnings.warn(f"the contact zones changed from {n0} to {n1} between {self.system.param} = "
+                          f"{base.p:.10g} and {new.p:.10g} where no stretch of the contact grid changed sides "
+                          f"(a narrow peak between its samples): not located", RuntimeWarning, stacklevel=2)
             return []
         lo, hi, peak = topological[0]
         others = [r for r in topological[1:] if not self._mirrors(topological[0], r)]
@@ -682,7 +686,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     T = check_number("T", T)
     if not math.isfinite(T) or abs(T) > 1e12 * max(rod.EA, rod.EI / rod.L**2):
         raise ValueError(f"the tension T = {T:.6g} is not a usable number")
-    check_tension(rod, T)
+    if start is None:  # from the sag or the straight state, unique only above the Euler load; a stored point is
+        check_tension(rod, T)  # an equilibrium wherever it was reached
     phi_L = check_number("phi_L", phi_L)
     if start is not None and from_straight is not None:
         raise ValueError("give start or from_straight, not both")
