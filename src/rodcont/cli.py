@@ -591,6 +591,14 @@ def solve(gamma, phi, load_step, conduit, N, k, w, EI, GJ, EA, L):
             click.echo(f"contact {a:.6g} {b:.6g} {f:.10g}" + ("  (point)" if a == b else ""))
     click.echo(f"newton_iterations {eq.newton.iterations}")
     click.echo(f"residual_norm {eq.newton.residual_norm:.6g}")
+    # the error the trace's accuracy guard estimates (a re-solve in a richer space): solve keeps its uniform
+    # mesh, which a narrow contact or a deep sag can leave far from the answer
+    from .mesh import ErrorEstimator
+    err = ErrorEstimator(eq.system).estimate(eq.x, float(phi))  # the system continues phi_L
+    click.echo(f"error {err:.2g}")
+    if not err <= 1e-6:
+        click.echo(f"rodcont: warning: the estimated error {err:.2g} exceeds 1e-6 on this uniform mesh of N = "
+                   f"{eq.system.disc.N}: raise --N (or use trace, whose mesh adapts)", err=True)
 
 
 @main_group.command()
