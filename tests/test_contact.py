@@ -791,7 +791,8 @@ def test_clearance_stations_are_mesh_breakpoints():
 
 
 def test_clearance_tables_refuse_what_they_cannot_mean():
-    for bad, message in ((((0.0, "0.01"), (1.0, 0.02)), "pairs of numbers"), (((0.0, True), (1.0, 0.02)), "pairs of numbers"),
+    for bad, message in ((((0.0, "0.01"), (1.0, 0.02)), "pairs of numbers"),
+                         (((0.0, True), (1.0, 0.02)), "pairs of numbers"),
                          (((0.0, 0.01), (0.5, 0.01), (0.500000001, 0.02), (1.0, 0.02)), "too close"),
                          (((0.0, 0.01), (1e-300, 0.02), (1.0, 0.02)), "too close")):
         with pytest.raises(ValueError, match=message):

@@ -825,8 +825,8 @@ class _ContactRows:
         g = writer.f.require_group("contact")
         for name in list(g):
             del g[name]
-        g.attrs.update(clearance=wall.clearance if not wall.varying else np.asarray(wall.clearance), eps=wall.eps, force_scale=model.contact_scale,
-                       contact_level=wall.contact_level,
+        g.attrs.update(clearance=np.asarray(wall.clearance) if wall.varying else wall.clearance, eps=wall.eps,
+                       force_scale=model.contact_scale, contact_level=wall.contact_level,
                        law="p (g + p/k) = mu, g = (c^2 - |Delta|^2)/(2c), k = P/(eps c), mu = eps c P")
         g.create_dataset("S", data=self.S)
         for name, data in prof.items():
