@@ -265,8 +265,9 @@ def test_a_restart_refuses_another_k_instead_of_ignoring_it(tmp_path, capsys):
     a = tmp_path / "a.h5"
     code, _, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--out", str(a), "--quiet"], capsys)
     assert code == 0, err
-    code, _, err = run(["trace", "--start", f"{a}:1", "--k", "7", "--out", str(tmp_path / "b.h5")], capsys)
+    code, out, err = run(["trace", "--start", f"{a}:1", "--k", "7", "--out", str(tmp_path / "b.h5")], capsys)
     assert code == 2 and "--k 7 differs from the start file's k = 5" in err
+    assert "k = 7" not in out  # the problem echoed before the refusal does not claim the refused degree
 
 
 def test_a_restart_refuses_a_new_weight_direction_and_span_with_advice_that_runs(tmp_path, capsys):
@@ -280,3 +281,43 @@ def test_a_restart_refuses_a_new_weight_direction_and_span_with_advice_that_runs
     assert code == 2 and "--L differs" in err and "--param L" not in err
     code, _, err = run(["trace", "--start", f"{a}:1", "--w", "3", "--out", str(tmp_path / "b.h5")], capsys)
     assert code == 2 and "--param w --range A B" in err
+
+
+def test_the_fold_table_of_a_branch_in_t_gives_the_tension_of_each_fold(tmp_path, capsys):
+    """A branch traced in T folds in T: `folds` leads each row with T, the value a user restarts or
+    compares at (the Phi-fold of the Gamma = 1 branch, seen from fixed Phi just below it, folds in T
+    just below the branch's T = 10, where the point's own stored T says)."""
+    a, t = tmp_path / "a.h5", tmp_path / "t.h5"
+    assert run(["trace", "--gamma", "1", "--phi-max", "14", "--out", str(a), "--quiet"], capsys)[0] == 0
+    from rodcont.branchfile import load_branch
+    before = int(load_branch(str(a)).folds["index"][0]) - 1  # the stored point just before the Phi-fold
+    code, _, err = run(["trace", "--start", f"{a}:{before}", "--param", "T", "--range", "-40", "30", "--direction", "down",
+                        "--out", str(t), "--quiet"], capsys)
+    assert code == 0, err
+    code, out, _ = run(["folds", str(t)], capsys)
+    head, row = [line.split() for line in out.splitlines()[1:3]]
+    assert head[:4] == ["fold", "index", "T", "phi_L"]
+    d = load_branch(str(t))
+    assert float(row[2]) == pytest.approx(float(d.point(int(row[1]))["T"]), rel=1e-11)
+    assert 9.9 < float(row[2]) < 10.0 and float(row[3]) == pytest.approx(13.0995, abs=1e-3)
+
+
+def test_a_trace_in_t_starts_at_a_fold_in_phi_where_its_jacobian_is_singular(tmp_path, capsys):
+    """At a Phi-fold, J (at fixed Phi) is singular, so the start of a trace in T can neither solve at
+    fixed T nor border the tangent with (0, 1) (it once stopped: "no convergence at the starting point").
+    It starts along the null vector of [J, F_T] instead; up and down leave the fold on either side."""
+    a = tmp_path / "a.h5"
+    assert run(["trace", "--gamma", "1", "--phi-max", "14", "--out", str(a), "--quiet"], capsys)[0] == 0
+    from rodcont.branchfile import load_branch
+    sides = []
+    for way in ("up", "down"):
+        t = tmp_path / f"{way}.h5"
+        code, _, err = run(["trace", "--start", f"{a}:F1", "--param", "T", "--range", "-40", "30", "--direction", way,
+                            "--out", str(t), "--quiet"], capsys)
+        assert code == 0, err
+        d = load_branch(str(t))
+        p0, p1 = d.point(0), d.point(1)
+        assert float(p0["T"]) == pytest.approx(10.0, abs=1e-9)
+        assert float(p0["phi_L"]) == pytest.approx(13.0999938, abs=1e-6)
+        sides.append(np.sign(float(p1["stretch"]) - float(p0["stretch"])))
+    assert sides[0] == -sides[1]

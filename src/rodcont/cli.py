@@ -223,9 +223,10 @@ def _echo_config(ctx) -> None:
     params["reference"] = ctx.meta.get("rodcont.reference", "straight")
     start = params.get("start")
     if start is not None:
-        # a restart's rod, loads, reference curve, conduit and mesh are the start file's, not the defaults
+        # a restart's rod, loads, reference curve, conduit and mesh are the start file's, not the defaults;
+        # only an explicit --N is its own (a --k other than the file's is refused, so it is not echoed)
         for name in CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + ("N", "k"):
-            if name != "phi" and name not in _explicit("N", "k"):
+            if name != "phi" and name not in _explicit("N"):
                 params.pop(name, None)
     text = config_toml(params)
     ctx.meta["rodcont.config"] = text
@@ -794,13 +795,18 @@ def _fold_table(data):
     if not len(f.get("index", [])):
         click.echo("no folds")
         return
-    click.echo(f"{'fold':>4} {'index':>6} {'phi_L':>18} {'stretch':>18} {'torque':>16} {'l0':>16} waves before->after")
+    # a branch traced in another parameter folds in that parameter: its value leads the row
+    param = data.param if data.param != "phi_L" else None
+    head = f" {param:>18}" if param else ""
+    click.echo(f"{'fold':>4} {'index':>6}{head} {'phi_L':>18} {'stretch':>18} {'torque':>16} {'l0':>16} "
+               f"waves before->after")
     located = f.get("located", [1] * len(f["index"]))
     for j in range(len(f["index"])):
         mark = "  (+1 wave)" if f["waves_after"][j] > f["waves_before"][j] else ""
         mark += _stable_side(f, j)
         mark += "" if located[j] else "  (bracketed, not located)"
-        click.echo(f"F{j + 1:<3d} {f['index'][j]:6d} {f['phi_L'][j]:18.12f} {f['stretch'][j]:18.12f} "
+        value = f" {float(data.point(int(f['index'][j]))[param]):18.12g}" if param else ""
+        click.echo(f"F{j + 1:<3d} {f['index'][j]:6d}{value} {f['phi_L'][j]:18.12f} {f['stretch'][j]:18.12f} "
                    f"{f['torque'][j]:16.10f} {f['l0'][j]:16.10f} {f['waves_before'][j]:d} -> {f['waves_after'][j]:d}"
                    f"{mark}")
 

@@ -92,6 +92,7 @@ class Stop(Enum):
     SEGMENT = "segment"        # an event that ends this segment: the caller goes on with another tracker
     AT_START = "at_start"      # a stopping event or bound already violated at the first point
     START_FAILED = "start_failed"
+    NO_CONVERGENCE = "no_convergence"  # a driver's own stop: no converged solution even on refined meshes
 
 
 @dataclass
@@ -637,15 +638,49 @@ class Tracker:
             pt.arclength = 0.0
             self.current = pt
             return pt
-        if not ok:
-            raise StopContinuation(f"no convergence at the starting point ({message})")
-        base = Point(x=x, p=p, tx=tx_ref, tp=tp_ref)
-        pt = self._make_point(x, p, base, 0.0, 0, kind=Kind.START)
+        pt = None
+        if ok:
+            base = Point(x=x, p=p, tx=tx_ref, tp=tp_ref)
+            pt = self._make_point(x, p, base, 0.0, 0, kind=Kind.START)
         if pt is None:
-            raise StopContinuation("the starting point is singular (no unique tangent): use branch switching")
+            # at a fold in p (e.g. a stored fold in another parameter) J is singular: neither Newton at
+            # fixed p nor the tangent bordered by (0, 1) is regular; [J, F_p] still has a one-dimensional
+            # null space, and a start along it is the regular restart above
+            try:
+                self._t0 = self._null_direction(self._x0, self._p0, s.direction)
+            except SingularMatrix:
+                self._t0 = None
+            if self._t0 is None:
+                if not ok:
+                    raise StopContinuation(f"no convergence at the starting point ({message})")
+                raise StopContinuation("the starting point is singular (no unique tangent): use branch switching")
+            return self.start()
         pt.arclength = 0.0
         self.current = pt
         return pt
+
+    def _null_direction(self, x, p, direction: float):
+        """A null vector ``(tx, tp)`` of ``[J, F_p]`` at ``(x, p)``, with ``tp`` along ``direction``
+        (at a fold in p, where ``tp`` is rounding, either side); None where ``[J, F_p]`` is not of full
+        rank (a branch point). The border is a fixed random row: regular wherever the rank is full."""
+        F, J, Fp = self._linearise(x, p)
+        if max_norm(F) > math.sqrt(self.settings.newton_tol) * (1 + max_norm(x)):
+            return None  # not a solution: nothing to start along
+        row = np.random.default_rng(20261123).standard_normal(self.n + 1)
+        lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+        e = np.zeros(self.n + 1)
+        e[-1] = 1.0
+        t = lu.solve(e)
+        if not np.all(np.isfinite(t)):
+            return None
+        # a null vector: [J, F_p] t vanishes relative to the size of t (rank deficiency leaves it large)
+        defect = max_norm(J @ t[:-1] + np.asarray(Fp, float) * t[-1])
+        scale = max_norm(t) * max(abs(J).max(), max_norm(np.asarray(Fp, float)), 1.0)
+        if not defect <= 1e-8 * scale:
+            return None
+        if t[-1] * direction < 0:
+            t = -t
+        return t[:-1], float(t[-1])
 
     def _check_start(self, pt: Point) -> StopReason | None:
         """A bound or a stopping event already violated at the first point stops at once."""
@@ -833,11 +868,14 @@ class Tracker:
             found.sort(key=lambda f: f.offset)
             found = self._guards_at_found(base, found)
             for f in found:
+                # the stop is set before its point is handed over: a consumer deciding what to do with
+                # the point (e.g. refine the mesh and go on from it) sees that the tracker ends there
+                if f.stop is not None:
+                    self.stop = f.stop
                 if f.point is not None:
                     self._accept(f.point)
                     yield f.point
                 if f.stop is not None:
-                    self.stop = f.stop
                     return
             self._accept(new)
             yield new

@@ -392,7 +392,6 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     reason = StopReason(Stop.START_FAILED, "not started")
     steps = iterations = 0
     step_in_use = None  # the step size reached before a remesh: a new segment goes on with it
-    stopping = {f"event:{ev.name}" for ev in events if ev.stop}
     try:
         while True:
             sysm = seg.system
@@ -414,7 +413,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 failed_remeshes += 1
                 pt, old = last_recorded
                 if failed_remeshes > 3 or old.disc.N * 2 > o.N_max:
-                    reason = StopReason(Stop.EVENT, f"accuracy guard: no converged solution on a refined mesh "
+                    reason = StopReason(Stop.NO_CONVERGENCE, f"accuracy guard: no converged solution on a refined mesh "
                                                     f"at p = {pt.p:.10g} ({exc})")
                     break
                 new = old.with_mesh(old.conform(halved(old.disc.breakpoints)))
@@ -486,11 +485,10 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 remeshes_here = 0
                 if callback is not None:
                     callback(pt)
-                # not at a point where the trace stops (a guard, a bound): the tracker sets its stop only after
-                # handing the point over, and a new segment from there would start past the guard and never
-                # see it cross again (seen: the validity guard passed on a deep sag, L = 10)
-                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None \
-                        and pt.kind != Kind.BOUND and str(pt.kind) not in stopping:
+                # not at a point where the trace stops (a guard, a bound: the tracker's stop is set when it
+                # hands that point over): a new segment from there would start past the guard and never see it
+                # cross again (seen: the validity guard passed on a deep sag, L = 10)
+                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None:
                     next_seg = _remesh(sysm, pt, err, accuracy, o)
                     break
             steps += tracker.steps
@@ -510,8 +508,8 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         reason = StopReason(Stop.EVENT, "interrupted")
         raise
     finally:
-        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status == Stop.STEP_TOO_SMALL
-                                               or "no converged solution" in reason.message else "")
+        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status in
+                                               (Stop.STEP_TOO_SMALL, Stop.NO_CONVERGENCE) else "")
         branch.steps += steps
         branch.newton_iterations += iterations
         branch.elapsed += time.perf_counter() - t_start
