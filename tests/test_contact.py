@@ -706,6 +706,9 @@ def test_a_varying_clearance_round_trips_and_is_validated(tmp_path, capsys):
     w = Wall(((0.0, 0.01), (0.5, 0.02), (1.0, 0.01)), eps=1e-4)
     assert Wall.from_spec(w.spec) == w and w.c_max == 0.02 and w.c_min == 0.01
     assert w.slope_at(np.array([-1.0, 0.25, 0.75, 2.0])).tolist() == pytest.approx([0.0, 0.02, -0.02, 0.0])
+    # a weightless rod's default law scale EI c / L^4 takes the largest clearance over its own span only
+    assert w.scale(0.0, 2.0, 0.25) == pytest.approx(2.0 * 0.015 / 0.25 ** 4, rel=1e-14)
+    assert w.scale(0.0, 2.0, 1.0) == pytest.approx(2.0 * 0.02, rel=1e-14) and w.scale(3.0, 2.0, 0.25) == 3.0
     for bad, message in ((((0.0, 0.01),), "at least two"), (((0.0, 0.01), (0.0, 0.02)), "strictly increasing"),
                          (((0.0, 0.01), (1.0, -0.02)), "positive"), ("wide", "table of (S, c) pairs")):
         with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):

@@ -111,10 +111,11 @@ class Wall:
         return np.interp(np.real(np.asarray(S, float)), t[:, 0], t[:, 1])
 
     def scale(self, w: float, EI: float, L: float) -> float:
-        """``P``: the given force scale, else ``w``, else ``EI c / L^4`` (the largest ``c``)."""
+        """``P``: the given force scale, else ``w``, else ``EI c / L^4`` (the largest ``c`` over the span
+        ``[0, L]``: stations of a table beyond the rod do not set its law)."""
         if self.force_scale is not None:
             return float(self.force_scale)
-        return float(w) if w > 0 else float(EI) * self.c_max / float(L) ** 4
+        return float(w) if w > 0 else float(EI) * self.max_on(0.0, float(L)) / float(L) ** 4
 
     def pressure(self, D1, D2, P: float, S=None):
         """Contact force per unit ``S``, ``p >= 0``, at deflections ``(D1, D2)`` (analytic: complex-step safe);
