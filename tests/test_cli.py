@@ -321,3 +321,14 @@ def test_a_trace_in_t_starts_at_a_fold_in_phi_where_its_jacobian_is_singular(tmp
         assert float(p0["phi_L"]) == pytest.approx(13.0999938, abs=1e-6)
         sides.append(np.sign(float(p1["stretch"]) - float(p0["stretch"])))
     assert sides[0] == -sides[1]
+
+
+def test_a_tension_that_stretches_the_rod_by_half_its_length_is_warned_as_a_forgotten_ea(capsys):
+    """A 100 kN pull on a rod with the paper's dimensionless EA = 255 stretches it 392-fold: the answer is
+    right for that rod and useless for a drill pipe; the user is told which option they likely forgot."""
+    code, _, err = run(["solve", "--T", "200", "--phi", "0"], capsys)
+    assert code == 0 and "T/EA = 0.784" in err and "the paper default" in err and "--EA" in err
+    code, _, err = run(["solve", "--T", "200", "--EA", "1e6", "--phi", "0"], capsys)
+    assert code == 0 and "warning" not in err
+    code, _, err = run(["solve", "--gamma", "5", "--phi", "0"], capsys)  # T/EA = 0.2: a rubber rod, not warned
+    assert code == 0 and "warning" not in err
