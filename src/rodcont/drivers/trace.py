@@ -31,6 +31,7 @@ import numpy as np
 from ..branch import Branch
 from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, Stop, StopContinuation,
                             StopReason, Tracker)
+from ..linalg import bordered, scaled_smallest_singular_value
 from ..mesh import ErrorEstimator, adapted_mesh, halved
 from ..rod import RodParameters
 from ..system import SYSTEM_PARAMS, RodSystem, check_number
@@ -508,8 +509,10 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
         reason = StopReason(Stop.EVENT, "interrupted")
         raise
     finally:
-        branch.stop_reason = reason.message + (_symmetry_hint(system) if reason.status in
-                                               (Stop.STEP_TOO_SMALL, Stop.NO_CONVERGENCE) else "")
+        hint = ""
+        if reason.status in (Stop.STEP_TOO_SMALL, Stop.NO_CONVERGENCE):
+            hint = _symmetry_hint(system) or (_singular_hint(*last_recorded) if last_recorded else "")
+        branch.stop_reason = reason.message + hint
         branch.steps += steps
         branch.newton_iterations += iterations
         branch.elapsed += time.perf_counter() - t_start
@@ -612,6 +615,23 @@ def _symmetry_hint(system: RodSystem) -> str:
     return (" (a rod whose weight does not point across a straight reference has equilibria off its axis "
             "in circles, turned about the axis, with a singular Jacobian: give it a weight across the axis, "
             "however small, to pick the plane)")
+
+
+def _singular_hint(pt: Point, sysm: RodSystem) -> str:
+    """Where the corrector failed at every step size: whether the matrix at the last stored point is
+    singular to rounding (the stop is then a singular point, of the rod or of this discrete problem, that
+    no step size passes: seen in a pipe with eps = 1e-5 on a graded mesh of N = 241)."""
+    _, J, Fp = sysm.linearise(pt.x, pt.p)
+    sigma = scaled_smallest_singular_value(bordered(J, np.asarray(Fp, float), pt.tx, pt.tp))
+    # the scaled collocation matrix of a regular point has sigma ~ h^3 (the paper's rod at Phi = 5: 5.9e-8
+    # at N = 54, 1.5e-10 at 400, 2.8e-12 at 1500, so about 7e-14 at 5000): rounding is the level below
+    if sigma > 2e-15:
+        return ""
+    return (f" (the Jacobian bordered by the tangent is singular to rounding at the last stored point, p = "
+            f"{pt.p:.10g}: smallest singular value {sigma:.1g} with rows and columns scaled; a singular point "
+            f"of this discrete problem or of the rod, which no step size passes"
+            + ("; a different mesh (--N-max, --N) or a larger eps may pass it" if sysm.wall is not None
+               else "; a different mesh (--N-max, --N) may pass it") + ")")
 
 
 def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
