@@ -336,7 +336,11 @@ def test_a_rod_touching_the_pipe_at_one_point_converges_to_exact_contact():
     for eps in (1e-4, 1e-5, 1e-6):
         out, con = _sag_in_pipe(c, eps)
         (a, b, force), = con["zones"]
-        assert a < 0.5 < b and a + b == pytest.approx(1.0, abs=1e-6)
+        # the zone's ends are samples of the contact grid: symmetric about mid-span to its spacing there
+        # (an adapted mesh need not be symmetric to rounding)
+        h = max(np.diff(con["S"])[np.searchsorted(con["S"], v) - 1: np.searchsorted(con["S"], v) + 1].max()
+                for v in (a, b))
+        assert a < 0.5 < b and abs(a + b - 1.0) <= h + 1e-12
         err[eps] = dict(stretch=abs(out["stretch"] / ref["stretch"] - 1), M0=abs(out["M0"] / ref["M0"] - 1),
                         force=abs(force / ref["total_side_force"] - 1), width=b - a)
     assert err[1e-4]["stretch"] > 3 * err[1e-5]["stretch"] > 9 * err[1e-6]["stretch"]
@@ -858,3 +862,25 @@ def test_a_trace_stopped_by_a_singular_point_says_so_and_a_regular_stop_does_not
     assert 20.86 < b.table["phi_L"][-1] < 20.87
     b = trace(rod=RodParameters(), T=10.0, ds=5.0, ds_max=5.0, ds_min=5.0)  # a step-size stop at a regular point
     assert b.stop_reason.startswith("step size fell below") and "singular" not in b.stop_reason
+
+
+def test_solve_estimates_the_error_of_its_side_force_and_warns_when_it_is_large(capsys):
+    """In a tapered conduit at N = 15 the centreline is within 5e-7 of L but the side force is 8 % off: the
+    wall pressure is the stiffest answer (a deflection error d is a pressure error of d P / (eps c)). solve
+    prints the side force's own estimate (the trace's re-solve in a richer space) and warns above 1e-3. The
+    estimate is checked against the actual error (a solve on N = 640) within a factor of 5: measured 5e-2 for
+    8.3e-2, 1.8e-3 for 4.3e-4, 3.1e-6 for 9.7e-6 at N = 15, 40, 160."""
+    conduit = os.path.join(EXAMPLES, "conduit_taper.toml")
+
+    def solve(N):
+        code, out, err = run(["solve", "--gamma", "1", "--phi", "0", "--conduit", conduit, "--N", str(N)], capsys)
+        assert code == 0, err
+        lines = dict(line.split(" ", 1) for line in out.splitlines() if line and not line.startswith("#"))
+        return float(lines["side_force"]), float(lines["side_force_error"]), err
+
+    exact = solve(640)[0]
+    for N, warned in ((15, True), (40, True), (160, False)):
+        f, estimate, err = solve(N)
+        actual = abs(f - exact) / exact
+        assert actual / 5 < estimate < 5 * actual
+        assert ("side force's estimated error" in err) == warned

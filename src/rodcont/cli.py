@@ -600,8 +600,16 @@ def solve(gamma, phi, load_step, conduit, N, k, w, EI, GJ, EA, L):
     # the error the trace's accuracy guard estimates (a re-solve in a richer space): solve keeps its uniform
     # mesh, which a narrow contact or a deep sag can leave far from the answer
     from .mesh import ErrorEstimator
-    err = ErrorEstimator(eq.system).estimate(eq.x, float(phi))  # the system continues phi_L
+    estimator = ErrorEstimator(eq.system, watch_side_force=True)
+    err = estimator.estimate(eq.x, float(phi))  # the system continues phi_L
     click.echo(f"error {err:.2g}")
+    if wall is not None:
+        sf_err = estimator.side_force_error
+        click.echo(f"side_force_error {sf_err:.2g}")
+        if not sf_err <= 1e-3:  # the law's own error for a point force is 2e-4 at eps = 1e-5
+            click.echo(f"rodcont: warning: the side force's estimated error {sf_err:.2g} exceeds 1e-3 on this "
+                       f"uniform mesh of N = {eq.system.disc.N}: raise --N (or use trace, whose mesh adapts)",
+                       err=True)
     if not err <= 1e-6:
         click.echo(f"rodcont: warning: the estimated error {err:.2g} exceeds 1e-6 on this uniform mesh of N = "
                    f"{eq.system.disc.N}: raise --N (or use trace, whose mesh adapts)", err=True)
