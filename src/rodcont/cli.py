@@ -411,7 +411,8 @@ def _tension(gamma, rod):
         T = rod.tension(gamma)
         if not math.isfinite(T):
             raise UserError(f"--gamma {gamma:g} gives a tension that is not finite")
-    if abs(T) > 0.5 * rod.EA:
+    from .drivers.solve import euler_tension
+    if abs(T) > 0.5 * rod.EA and T > euler_tension(rod):  # (below the Euler load it is refused anyway)
         # the model is right for any stretch, a real rod is not: this is nearly always a forgotten --EA
         click.echo(f"rodcont: warning: T = {T:g} stretches the rod by T/EA = {T / rod.EA:.3g} "
                    f"(EA = {rod.EA:g}{', the paper default' if rod.EA == 255.0 else ''}): give the rod's "

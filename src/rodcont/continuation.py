@@ -203,6 +203,17 @@ class Point:
     solver: object = field(default=None, repr=False)  # corrector matrix for steps from this point
 
 
+class Action(str, Enum):
+    """What a located event does (a string enum: ``"stop"`` and ``Action.STOP`` are the same)."""
+
+    RECORD = "record"    # a point is kept there
+    STOP = "stop"        # the trace ends there (a guard)
+    SEGMENT = "segment"  # the tracker ends there with Stop.SEGMENT, for the caller to go on differently
+
+    def __str__(self) -> str:
+        return self.value
+
+
 @dataclass
 class Event:
     """A scalar test function ``g(point)``; a sign change is located.
@@ -221,14 +232,16 @@ class Event:
     # located where |g| <= tol * max |g| at the two points around the crossing: relative to the step's change
     # of g, not to g at the point before it, which may be already tiny (a restart just short of the event)
     tol: float = 1e-11
-    action: str = ""
+    action: Action | str = ""
 
     def __post_init__(self):
         if not self.action:
-            self.action = "stop" if self.stop else "record"
-        if self.action not in ("record", "stop", "segment"):
-            raise ValueError(f"event action must be record, stop or segment, got {self.action!r}")
-        self.stop = self.action == "stop"
+            self.action = Action.STOP if self.stop else Action.RECORD
+        try:
+            self.action = Action(self.action)
+        except ValueError:
+            raise ValueError(f"event action must be record, stop or segment, got {self.action!r}") from None
+        self.stop = self.action == Action.STOP
 
 
 @dataclass
@@ -337,7 +350,7 @@ class EventDetector(Detector):
             return []
         f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
                            f"event:{ev.name}")
-        status = {"stop": Stop.EVENT, "segment": Stop.SEGMENT}.get(ev.action)
+        status = {Action.STOP: Stop.EVENT, Action.SEGMENT: Stop.SEGMENT}.get(ev.action)
         if f is not None:
             return [Finding(f.ds, f, StopReason(status, ev.name, ev.name) if status else None)]
         if status is not None:  # crossed but not located: stop before the crossing, say so
@@ -692,8 +705,8 @@ class Tracker:
             return StopReason(Stop.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
                                           f"{s.p_max if pt.tp > 0 else s.p_min:g} reached at the start")
         for ev in self.events:
-            if ev.action in ("stop", "segment") and ev.function(pt) < 0:
-                return StopReason(Stop.AT_START if ev.action == "stop" else Stop.SEGMENT,
+            if ev.action in (Action.STOP, Action.SEGMENT) and ev.function(pt) < 0:
+                return StopReason(Stop.AT_START if ev.action == Action.STOP else Stop.SEGMENT,
                                   f"{ev.name} (already at the start)", ev.name)
         return None
 
@@ -765,7 +778,7 @@ class Tracker:
         crossed between the base and the step's end (a guard that dips at a fold): then it is
         located on that shorter arc, and the trace stops there."""
         for ev in self.events:
-            if ev.action != "stop":
+            if ev.action != Action.STOP:
                 continue
             g0 = ev.function(base)
             for j, f in enumerate(found):
