@@ -639,14 +639,18 @@ def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: Trace
     """A new segment from ``pt`` on a mesh adapted to it (aiming at a tenth of the trigger, or ``target``).
 
     ``ahead = (system, point)``: the point of a step rejected for its error. The
-    mesh is adapted to it instead (from its own mesh, which may already be a
-    refinement): a feature that appears within the step, such as a new contact,
-    is not in ``pt``'s indicator, and a mesh adapted to ``pt`` fails the same
-    step again, however often it is refined.
+    mesh is adapted to it (from its own mesh, which may already be a
+    refinement), and on one mesh to ``pt`` as well: a feature that appears
+    within the step, such as a new contact, is not in ``pt``'s indicator, and a
+    mesh adapted to ``pt`` alone fails the same step again, however often it is
+    refined; one that vanishes within it is in ``pt``'s only.
     """
     p = pt.p
     src, x_src, p_src = (sysm, pt.x, p) if ahead is None else (ahead[0], ahead[1].x, ahead[1].p)
     indicator = src.interval_defect(x_src, p_src)
+    if ahead is not None and np.array_equal(src.disc.breakpoints, sysm.disc.breakpoints):
+        # on one mesh: the features of both ends of the step (one that lifts off within it is in pt's only)
+        indicator = np.maximum(indicator, sysm.interval_defect(pt.x, p))
     b = adapted_mesh(src.disc.breakpoints, indicator, src.disc.k, max(err, at_least),
                      target if target is not None else accuracy.trigger / 10,
                      N_max=o.N_max)
