@@ -156,3 +156,20 @@ def test_an_event_just_ahead_of_the_start_is_located_to_a_reachable_tolerance():
     root = 0.5 + (-1.0 + math.sqrt(1.0 + 12e-9)) / 6.0
     assert pts[-1].p == pytest.approx(root, abs=1e-14)
     assert len(calls) <= 8
+
+
+def test_a_residual_at_rounding_is_told_from_a_stagnated_one():
+    """The corrector takes a stalled residual for rounding only where every row is within 1e3 times its
+    noise (machine epsilon times the size of its terms): a trace in a pipe once stored a point whose residual
+    was 2e9 times its noise (its neighbours: 1.3 times). Here: Bratu's solution converged by Newton passes,
+    the same solution moved by 1e-9 of its size does not."""
+    from rodcont.continuation import _at_rounding
+    b = Bratu(N=20)
+    x0 = b.disc.project([lambda S: 0.1 * np.sin(np.pi * S)])
+    r = b.disc.newton(x0, [2.0])
+    assert r.converged
+    F, J, (Fp,) = b.disc.linearise(r.x, [2.0], [0])
+    assert _at_rounding(F, J, Fp, r.x, 2.0)
+    x = r.x * (1 + 1e-9)
+    F, J, (Fp,) = b.disc.linearise(x, [2.0], [0])
+    assert not _at_rounding(F, J, Fp, x, 2.0)
