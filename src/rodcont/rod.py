@@ -274,7 +274,8 @@ class EulerianRod:
                                  residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")],
                                  # the hand-derived derivatives cover the straight rod without a wall;
                                  # every other case takes the complex step of its residual
-                                 jacobian=self.jacobian if self.constant_frame and wall is None else None)
+                                 jacobian=self.jacobian if self.constant_frame and wall is None else None,
+                                 affine_bc=True)
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)
@@ -443,7 +444,8 @@ class EulerianRod:
 
     def bc(self, za, zb, p):
         """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta``
-        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``."""
+        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``: affine in the jets and
+        the parameters (declared to the collocation, which then differentiates them once)."""
         phi_L, T = p[0], p[1]
         D1, D2, PHI = Jet.D1, Jet.D2, Jet.PHI
         end_phi = phi_L if self.constant_frame else phi_L - self.twist_offset
