@@ -95,7 +95,22 @@ def _director_jets(r1, r2, r3):
 
 def _cross2(a, b):
     """First two components of ``a x b``."""
-    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2]])
+    out = np.empty((2,) + np.broadcast_shapes(a.shape[1:], b.shape[1:]), dtype=np.result_type(a, b))
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    return out
+
+
+def _equations(EF, EM, torque):
+    """The six equations ``(6, npts)``: force balance (3), moment on ``K1, K2`` (2), torque (1).
+    (Filled in place: ``np.stack`` of six rows costs more than the rows on a short rod.)"""
+    G = np.empty((6,) + EF.shape[1:], dtype=np.result_type(EF, EM, torque))
+    G[:3] = EF
+    G[3:5] = EM
+    G[5] = torque
+    return G
 
 
 # Tangent helpers for :meth:`EulerianRod.jacobian`: ``dA`` is ``(seeds, 3, npts)`` (or broadcasts to it),
@@ -124,6 +139,15 @@ def _seeded_cross(*pairs):
         out[j + 2, 0] = X[2]
         out[j + 2, 2] = -X[0]
     return out
+
+
+def _evenly(cols):
+    """Evenly spaced increasing indices as a slice."""
+    cols = [int(c) for c in cols]
+    step = cols[1] - cols[0]
+    if step <= 0 or any(b - a != step for a, b in zip(cols, cols[1:])):
+        raise ValueError(f"columns {cols} are not evenly spaced")
+    return slice(cols[0], cols[-1] + 1, step)
 
 
 # The geometric seeds of the straight-reference Jacobian (increasing jet order): the first three
@@ -279,6 +303,10 @@ class EulerianRod:
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)
+        if self.problem.jacobian is not None:
+            # columns of dG that jacobian fills by blocks, as slices (writes through views, no fancy indexing)
+            pos = self._jet_pos
+            self._dG_cols = (_evenly(pos[list(_SEED_JETS)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
 
     def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
         r = self.rod
@@ -329,8 +357,10 @@ class EulerianRod:
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
             q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
-        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+            EF[0] += q1
+            EF[1] += q2
+            EF[2] += q3
+        return _equations(EF, EM, mp / GJ)
 
     def jacobian(self, S, z, p):
         """The residual and its exact derivatives w.r.t. the jet (constant frame only), by hand.
@@ -404,17 +434,20 @@ class EulerianRod:
         gK = self.gK[:, None]
         EF = Fp + (w * n / alpha) * gK
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        G = np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+        G = _equations(EF, EM, mp / GJ)
 
         npts = n.shape[-1]
         pos = self._jet_pos  # jet component -> column of dG
+        seeds, jF, jFp = self._dG_cols
         out = np.zeros((6, self._active.size, npts))
-        geo = np.empty((6, 6, npts))  # (equation, seed, point)
+        geo = out[:, seeds]  # (equation, seed, point): a view
         geo[:3] = (w / alpha)[None, None] * (dn - (n / alpha) * dalpha)[None] * gK[:, None]
         geo[3:5] = (EI * duperp[:, :2] + dm[:, None] * d3p[:2] + m * dd3p[:, :2] + dmp[:, None] * d3[:2]
-                    + mp * dd3[:, :2] + _seeded_cross((1, F))[:, :2]).transpose(1, 0, 2)
+                    + mp * dd3[:, :2]).transpose(1, 0, 2)
+        # and r' x F along its seeds Delta1' (e1 x F) and Delta2' (e2 x F), first two components
+        geo[4, 0] -= F[2]
+        geo[3, 3] += F[2]
         geo[5] = dmp / GJ
-        out[:, pos[list(_SEED_JETS)]] = geo
         # twist rate and its derivative: m = GJ J1 (phi' + tau), mp = GJ (J1p (phi' + tau) + J1 (phi'' + tau'))
         out[3:5, pos[Jet.PHI[1]]] = GJ * (J1 * d3p[:2] + J1p * d3[:2])
         out[5, pos[Jet.PHI[1]]] = J1p
@@ -427,15 +460,15 @@ class EulerianRod:
         mF = GJ * J1F * twist
         mpF = GJ * (J1pF * twist + J1F * ptw)
         mpFp = GJ * J1F * twist
-        jF, jFp = pos[Jet.F], pos[Jet.FP]
         out[:3, jF] = gK[:, None] * (-(w * n / alpha**2) * aF)[None]  # d(w n / alpha)/dF_i
-        out[[0, 1, 2], jFp] = 1.0
+        out[[0, 1, 2], pos[Jet.FP]] = 1.0
         out[3:5, jF] = (EI * (apF[:, None] * bend[:2] + aF[:, None] * W[:2]) / n3
                         + mF[:, None] * d3p[:2] + mpF[:, None] * d3[:2]).transpose(1, 0, 2)
         out[5, jF] = mpF / GJ
         out[3:5, jFp] = (EI * aF[:, None] * bend[:2] / n3 + mpFp[:, None] * d3[:2]).transpose(1, 0, 2)
         out[5, jFp] = mpFp / GJ
         # r' x F: first two components (r'[1] F2 - r'[2] F1, r'[2] F0 - r'[0] F2)
+        jF = pos[Jet.F]
         out[3, jF[1]] -= r1[2]
         out[3, jF[2]] += r1[1]
         out[4, jF[0]] += r1[2]
@@ -553,8 +586,10 @@ class EulerianRod:
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
             q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
-        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+            EF[0] += q1
+            EF[1] += q2
+            EF[2] += q3
+        return _equations(EF, EM, mp / GJ)
 
     def _axial_curved(self, S, z, p):
         """:meth:`_axial_quantities` with a moving frame."""
