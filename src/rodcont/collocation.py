@@ -200,14 +200,14 @@ class Collocation:
                                shape=(nz * npts, self.size))
         # Jets at the two ends: small dense blocks on the columns of the basis functions nonzero there.
         self.end_cols, self.end_E = [], []
-        for side, xe in ((0, b[0]), (1, b[-1])):
+        at_ends = {m: spaces[m].local(b[[0, -1]], m, np.array([0, N - 1])) for m in spaces}
+        for side in (0, 1):
             ecols, blocks = [], []
-            at_end = {m: spaces[m].local(np.array([xe]), m, np.array([0 if side == 0 else N - 1])) for m in spaces}
             for i, m in enumerate(pb.orders):
-                vals, first = at_end[m]
-                ecols.append(self.index[i][first[0] + np.arange(k + m)])
+                vals, first = at_ends[m]
+                ecols.append(self.index[i][first[side] + np.arange(k + m)])
                 blk = np.zeros((nz, k + m))
-                blk[self.jet_rows[i]:self.jet_rows[i + 1]] = vals[:, 0, :]
+                blk[self.jet_rows[i]:self.jet_rows[i + 1]] = vals[:, side, :]
                 blocks.append(blk)
             self.end_cols.append(np.concatenate(ecols))
             self.end_E.append(np.concatenate(blocks, axis=1))  # (nz, ncols_end)
@@ -443,17 +443,21 @@ class Collocation:
         """Sparse matrix mapping ``x`` to the jets at ``S`` (row ``j * len(S) + q``, as :meth:`jets`)."""
         S = np.atleast_1d(np.asarray(S, float))
         pb = self.problem
-        blocks = []
+        data, indices, widths = [], [], []
         done = {}
         for i, m in enumerate(pb.orders):
             if m not in done:
                 done[m] = self.spaces[i].local(S, m, interval)
             vals, first = done[m]
-            cols = self.index[i][first[:, None] + np.arange(self.k + m)[None, :]]
-            rows = np.repeat(np.arange(S.size), self.k + m)
-            for nu in range(m + 1):
-                blocks.append(sp.csr_matrix((vals[nu].ravel(), (rows, cols.ravel())), shape=(S.size, self.size)))
-        return sp.vstack(blocks, format="csr")
+            cols = self.index[i][first[:, None] + np.arange(self.k + m)[None, :]].ravel()
+            for nu in range(m + 1):  # row j * len(S) + q: the k + m basis functions of field i at S[q]
+                data.append(vals[nu].ravel())
+                indices.append(cols)
+                widths.append(self.k + m)
+        # CSR arrays written directly (one matrix per jet row and a vstack cost ten times more)
+        indptr = np.concatenate([[0], np.cumsum(np.repeat(widths, S.size))])
+        return sp.csr_matrix((np.concatenate(data), np.concatenate(indices), indptr),
+                             shape=(len(widths) * S.size, self.size))
 
     def project(self, funcs: Sequence[Callable], free_values: Sequence[float] = ()) -> np.ndarray:
         """Unknown vector whose fields approximate the callables ``funcs`` (least squares, 3 points per coefficient)."""

@@ -45,6 +45,7 @@ from dataclasses import dataclass, asdict
 
 import numpy as np
 
+from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
 from .curves import _cross, _dot
@@ -784,7 +785,7 @@ class _Outputs:
         t = np.linspace(0.0, 1.0, samples + 1)[:-1]
         S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
         self.S = S
-        nodes = np.concatenate([[-1.0], np.polynomial.legendre.leggauss(disc.k)[0], [1.0]])
+        nodes = np.concatenate([[-1.0], gauss_legendre(disc.k)[0], [1.0]])
         mids = 0.5 * (nodes[1:] + nodes[:-1])
         self.S_check = (b[:-1, None] + 0.5 * np.diff(b)[:, None] * (mids[None, :] + 1.0)).ravel()
         nz = disc.problem.jet_size
