@@ -117,7 +117,8 @@ def _equations(EF, EM, torque):
 # Tangent helpers for :meth:`EulerianRod.jacobian`: ``dA`` is ``(seeds, 3, npts)`` (or broadcasts to it),
 # ``B`` a ``(3, npts)`` vector; the result carries the seed axis first.
 def _tdot(dA, B):
-    return dA[:, 0] * B[0] + dA[:, 1] * B[1] + dA[:, 2] * B[2]
+    # one einsum instead of five operations (the same sum, in the same order)
+    return np.einsum("sin,in->sn", dA, B)
 
 
 def _seeded_dot(*pairs):
@@ -800,6 +801,7 @@ class _Outputs:
             rows.append((np.arange(nz)[:, None] * npts + lo + np.arange(n)[None, :]).ravel())
         self.E = Z[np.concatenate(rows)]
         self.nz = nz
+        self.S_axial = np.concatenate([disc.S, b])  # collocation and mesh points: one call for both
 
     def _split(self, x):
         v = self.E @ x
@@ -813,11 +815,13 @@ class _Outputs:
     def __call__(self, x, p):
         model, disc = self.model, self.disc
         z = disc.jets(x)
-        _, alpha, n, _ = model._axial_quantities(disc.S, z, p)
+        D1, D2, d1p, d2p, zm, zc = self._split(x)
+        m, alpha, n, _ = model._axial_quantities(self.S_axial, np.concatenate([z, zm], axis=1), p)
+        npts = disc.npts
+        alpha, n, m_mesh = alpha[:npts], n[:npts], m[npts:]
         L = model.rod.L
         l = disc.integrate(n)
         l0 = disc.integrate(n / alpha)
-        D1, D2, d1p, d2p, zm, zc = self._split(x)
         if model.constant_frame:
             # alignment d3 . K3 on the sample grid (straight reference: K3 constant)
             align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
@@ -829,7 +833,6 @@ class _Outputs:
             t3 = 1.0 - k[0, 0] * D1 - k[1, 0] * D2
             align = t3 / np.sqrt(t1**2 + t2**2 + t3**2)
             d1p, d2p = t1 / t3, t2 / t3
-        m_mesh = model._axial_quantities(self.disc.breakpoints, zm, p)[0]
         G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
         return dict(stretch=(l - L) / L, torque=float(np.mean(m_mesh)), l=l, l0=l0,
                     alpha_min=float(np.min(alpha)),
