@@ -104,6 +104,18 @@ def _cross2(a, b):
     return out
 
 
+def _cross_axial(r1, v):
+    """``r' x v`` for a straight reference in frame components, ``r' = (a, b, 1)`` and ``v = (v0, v1, 0)``
+    (as ``r''`` and ``r'''`` are): three operations where the general product takes nine, and the same
+    values (the dropped terms are products with 0 and 1)."""
+    out = np.empty(np.broadcast_shapes(r1.shape, v.shape), dtype=np.result_type(r1, v))
+    np.negative(v[1], out=out[0])
+    out[1] = v[0]
+    np.multiply(r1[0], v[1], out=out[2])
+    out[2] -= r1[1] * v[0]
+    return out
+
+
 def _equations(EF, EM, torque):
     """The six equations ``(6, npts)``: force balance (3), moment on ``K1, K2`` (2), torque (1).
     (Filled in place: ``np.stack`` of six rows costs more than the rows on a short rod.)"""
@@ -343,8 +355,8 @@ class EulerianRod:
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
         alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
-        bend = _cross(r1, r2)
-        uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
+        bend = _cross_axial(r1, r2)
+        uperp_p = ((alphap * bend + alpha * _cross_axial(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
         J1 = alpha / n
         J1p = alphap / n - alpha * c / n3
         # pole p = K3: p.v = v[2], p.(a x b) = a0 b1 - a1 b0
@@ -395,9 +407,9 @@ class EulerianRod:
         dq = dr3 - dd3p * d3r2 - d3p * dd3r2[:, None] - dd3 * t1 - d3 * dt1[:, None]
         ec = e * (c / n3)
         dd3pp = (dq - (q / n) * dn[:, None]) / n - (de * c + e * dc[:, None] - ec * dn3[:, None]) / n3
-        bend = _cross(r1, r2)
+        bend = _cross_axial(r1, r2)
         dbend = _seeded_cross((1, r2), (2, -r1))
-        r13 = _cross(r1, r3)
+        r13 = _cross_axial(r1, r3)
         dr13 = _seeded_cross((1, r3), (3, -r1))
         # force-dependent scalars and their derivatives (geometric tangents; d/dF_i, d/dFp_i)
         alpha = 1.0 + _dot(F, d3) / EA
