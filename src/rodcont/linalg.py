@@ -190,10 +190,13 @@ def bordered(J, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
     # a discretisation hands out Jacobians of one pattern: keyed by shape and size, checked by value
     key = (n, J.indices.size)
     pat = _PATTERNS.get(key)
-    # (a collocation's Jacobians share their index arrays: the identity test settles it)
-    same = pat is not None and ((pat.source[0] is J.indices and pat.source[1] is J.indptr) or (
+    # (a collocation's Jacobians share read-only index arrays: then the identity test settles it)
+    frozen = not (J.indices.flags.writeable or J.indptr.flags.writeable)
+    same = pat is not None and ((frozen and pat.source[0] is J.indices and pat.source[1] is J.indptr) or (
         np.array_equal(pat.source[0], J.indices) and np.array_equal(pat.source[1], J.indptr)))
-    if not same:
+    if same:
+        pat.source = (J.indices, J.indptr)  # (equal arrays of another discretisation: identical next time)
+    else:
         pat = BorderedPattern(J.indices, J.indptr, n)
         if len(_PATTERNS) > 16:
             _PATTERNS.clear()
