@@ -800,3 +800,18 @@ def test_affine_bc_declaration_keeps_the_jacobian(N):
         np.testing.assert_array_equal(J1.toarray(), J2.toarray())
         for a, b in zip(d1, d2):
             np.testing.assert_array_equal(a, b)
+
+
+def test_affine_bc_declaration_contradicted_by_the_probes_is_refused():
+    """A bc declared affine whose derivatives change between the two probe points (in the jets, or only in
+    the parameters) is refused: kept derivatives would give a wrong Jacobian."""
+    import dataclasses
+    with pytest.raises(ValueError, match="affine"):
+        Collocation(dataclasses.replace(NONLINEAR, affine_bc=True), 3, 3)
+
+    def bc(za, zb, p):  # affine in the jets, not in the parameters
+        g = _affine_bc(za, zb, p)
+        return np.array([g[0], g[1], g[2] + p[1] ** 2, g[3], g[4]])
+    with pytest.raises(ValueError, match="affine"):
+        Collocation(dataclasses.replace(NONLINEAR, bc=bc, affine_bc=True), 3, 3)
+    Collocation(dataclasses.replace(NONLINEAR, bc=_affine_bc, affine_bc=True), 3, 3)

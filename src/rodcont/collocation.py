@@ -229,14 +229,18 @@ class Collocation:
         mask = np.zeros((self.n_bc, self._bc_cols.size), bool)
         mask[:, np.searchsorted(self._bc_cols, self.free_index)] = True
         npar = max(len(self.problem.params), 1)
+        slopes = []  # derivatives at the two probes, w.r.t. the end jets and the parameters
         for za, p in ((np.ones(nz), np.ones(npar)), (np.linspace(0.3, 0.7, nz), np.linspace(0.6, 0.9, npar))):
             try:
                 with np.errstate(all="ignore"):
                     g, dg = self._bc_jacobian(za, za[::-1].copy(), p)
+                    if self.problem.affine_bc:
+                        slopes.append(np.hstack([dg, self._bc_param_slopes(za, za[::-1].copy(), p)]))
             except ValueError:
                 raise
             except Exception:  # noqa: BLE001 - a bc undefined at these jets: assume it reads both ends
                 mask[:] = True
+                slopes = []
                 break
             for side in (0, 1):
                 reads = np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1) | ~np.all(np.isfinite(
@@ -244,6 +248,20 @@ class Collocation:
                 mask[np.ix_(reads, self._bc_cols_pos[side])] = True
         mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
         self._bc_mask = mask
+        # a declaration the probes contradict would give a wrong Jacobian: say so (a problem copied with
+        # dataclasses.replace and another bc keeps the flag)
+        if slopes and not np.allclose(slopes[0], slopes[1], rtol=1e-12, atol=1e-300):
+            raise ValueError("the boundary conditions are declared affine (affine_bc) but their derivatives "
+                             "differ between two points: declare affine_bc=False")
+
+    def _bc_param_slopes(self, za, zb, p) -> np.ndarray:
+        """``dg/dp`` (``(n_bc, len(p))``) by the complex step, one parameter at a time."""
+        out = np.empty((self.n_bc, p.size))
+        for j in range(p.size):
+            pc = p.astype(complex)
+            pc[j] += 1j * COMPLEX_STEP
+            out[:, j] = np.atleast_1d(self.problem.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
+        return out
 
     def _build_pattern(self) -> None:
         pb = self.problem
