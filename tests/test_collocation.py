@@ -775,3 +775,43 @@ def test_blocks_of_points_give_the_same_jacobian(monkeypatch):
         F, J, _ = disc.linearise(x, p)
         assert np.array_equal(F, F0)
         assert abs(J - J0).max() <= 1e-14 * abs(J0).max()
+
+
+def _affine_bc(za, zb, p):
+    return np.array([za[0] - 2.0 * zb[4] + p[2], za[1] - p[0], zb[2] + 3.0 * za[4] - p[1] * 0.5 + 1.0,
+                     za[3] + zb[1] - p[2], zb[0] - za[4]])
+
+
+@pytest.mark.parametrize("N", [3, 5])
+def test_affine_bc_declaration_keeps_the_jacobian(N):
+    """Declared affine boundary conditions (derivatives kept from the first linearisation) give the same
+    residual, Jacobian and parameter derivatives as differentiating them every time, at other points and
+    for parameters first asked for later; a free parameter enters them too."""
+    import dataclasses
+    pb = dataclasses.replace(NONLINEAR, bc=_affine_bc)
+    every, once = Collocation(pb, N, 3), Collocation(dataclasses.replace(pb, affine_bc=True), N, 3)
+    p = np.array([0.7, 1.3, 123.0])
+    rng = np.random.default_rng(5)
+    for dparams in ([0], [0, 1], [1]):
+        x = 0.1 * rng.normal(size=every.size)
+        F1, J1, d1 = every.linearise(x, p, dparams)
+        F2, J2, d2 = once.linearise(x, p, dparams)
+        np.testing.assert_array_equal(F1, F2)
+        np.testing.assert_array_equal(J1.toarray(), J2.toarray())
+        for a, b in zip(d1, d2):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_affine_bc_declaration_contradicted_by_the_probes_is_refused():
+    """A bc declared affine whose derivatives change between the two probe points (in the jets, or only in
+    the parameters) is refused: kept derivatives would give a wrong Jacobian."""
+    import dataclasses
+    with pytest.raises(ValueError, match="affine"):
+        Collocation(dataclasses.replace(NONLINEAR, affine_bc=True), 3, 3)
+
+    def bc(za, zb, p):  # affine in the jets, not in the parameters
+        g = _affine_bc(za, zb, p)
+        return np.array([g[0], g[1], g[2] + p[1] ** 2, g[3], g[4]])
+    with pytest.raises(ValueError, match="affine"):
+        Collocation(dataclasses.replace(NONLINEAR, bc=bc, affine_bc=True), 3, 3)
+    Collocation(dataclasses.replace(NONLINEAR, bc=_affine_bc, affine_bc=True), 3, 3)

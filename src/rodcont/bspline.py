@@ -15,14 +15,25 @@ over the evaluation points (the loops run over the degree only). No
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
+@functools.lru_cache(maxsize=None)
+def gauss_legendre(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """``numpy.polynomial.legendre.leggauss(k)``, computed once per ``k`` (an eigenproblem: a tenth of a
+    millisecond, and every discretisation and error estimate asks again); read-only arrays."""
+    xi, wi = np.polynomial.legendre.leggauss(k)
+    xi.flags.writeable = wi.flags.writeable = False
+    return xi, wi
+
+
 def gauss_points(breakpoints: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` Gauss-Legendre points and weights of each subinterval, in order."""
-    xi, wi = np.polynomial.legendre.leggauss(k)
+    xi, wi = gauss_legendre(int(k))
     b = np.asarray(breakpoints, dtype=float)
     h = np.diff(b)
     S = (b[:-1, None] + 0.5 * h[:, None] * (xi[None, :] + 1.0)).ravel()
@@ -70,15 +81,13 @@ class SplineSpace:
         ndu[0, 0] = 1.0
         left = np.empty((p + 1, npts))
         right = np.empty((p + 1, npts))
-        for jj in range(1, p + 1):
+        for jj in range(1, p + 1):  # (reversed slices of left: left[jj - r] for r = 0 .. jj - 1)
             left[jj] = x - t[span + 1 - jj]
             right[jj] = t[span + jj] - x
-            r = np.arange(jj)
-            ndu[jj, :jj] = right[1:jj + 1] + left[jj - r]
+            ndu[jj, :jj] = right[1:jj + 1] + left[jj:0:-1]
             temp = ndu[:jj, jj - 1] / ndu[jj, :jj]
-            saved = np.zeros((jj, npts))
-            saved[1:] = left[jj - r[1:] + 1] * temp[:-1]
-            ndu[:jj, jj] = saved + right[1:jj + 1] * temp
+            ndu[:jj, jj] = right[1:jj + 1] * temp
+            ndu[1:jj, jj] += left[jj:1:-1] * temp[:-1]
             ndu[jj, jj] = left[1] * temp[jj - 1]
         out = np.zeros((nu_max + 1, npts, p + 1))
         out[0] = ndu[:, p].T

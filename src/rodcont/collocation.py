@@ -53,7 +53,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .bspline import SplineSpace, gauss_points, locate
-from .linalg import NewtonResult, newton_solve
+from .linalg import NewtonResult, canonical_csc, csc_with_data, newton_solve
 
 COMPLEX_STEP = 1e-30
 POINT_BLOCK = 1024  # collocation points per complex-step call
@@ -88,6 +88,10 @@ class BVProblem:
     can compute them more cheaply than the complex step of ``residual``
     (which is used when it is absent). It must agree with that complex step
     to rounding (the problem's own tests check it).
+    ``affine_bc``: the boundary conditions are affine in the end jets and the
+    parameters, so their derivatives are constant: computed once per
+    discretisation instead of at every linearisation (a wrong declaration
+    gives a wrong Jacobian).
     """
 
     orders: Sequence[int]
@@ -100,6 +104,7 @@ class BVProblem:
     jet_dependence: Sequence[int] | None = None
     residual_params: Sequence[int] | None = None
     jacobian: Callable | None = None
+    affine_bc: bool = False
 
     @property
     def n_fields(self) -> int:
@@ -195,14 +200,14 @@ class Collocation:
                                shape=(nz * npts, self.size))
         # Jets at the two ends: small dense blocks on the columns of the basis functions nonzero there.
         self.end_cols, self.end_E = [], []
-        for side, xe in ((0, b[0]), (1, b[-1])):
+        at_ends = {m: spaces[m].local(b[[0, -1]], m, np.array([0, N - 1])) for m in spaces}
+        for side in (0, 1):
             ecols, blocks = [], []
-            at_end = {m: spaces[m].local(np.array([xe]), m, np.array([0 if side == 0 else N - 1])) for m in spaces}
             for i, m in enumerate(pb.orders):
-                vals, first = at_end[m]
-                ecols.append(self.index[i][first[0] + np.arange(k + m)])
+                vals, first = at_ends[m]
+                ecols.append(self.index[i][first[side] + np.arange(k + m)])
                 blk = np.zeros((nz, k + m))
-                blk[self.jet_rows[i]:self.jet_rows[i + 1]] = vals[:, 0, :]
+                blk[self.jet_rows[i]:self.jet_rows[i + 1]] = vals[:, side, :]
                 blocks.append(blk)
             self.end_cols.append(np.concatenate(ecols))
             self.end_E.append(np.concatenate(blocks, axis=1))  # (nz, ncols_end)
@@ -224,14 +229,18 @@ class Collocation:
         mask = np.zeros((self.n_bc, self._bc_cols.size), bool)
         mask[:, np.searchsorted(self._bc_cols, self.free_index)] = True
         npar = max(len(self.problem.params), 1)
+        slopes = []  # derivatives at the two probes, w.r.t. the end jets and the parameters
         for za, p in ((np.ones(nz), np.ones(npar)), (np.linspace(0.3, 0.7, nz), np.linspace(0.6, 0.9, npar))):
             try:
                 with np.errstate(all="ignore"):
                     g, dg = self._bc_jacobian(za, za[::-1].copy(), p)
+                    if self.problem.affine_bc:
+                        slopes.append(np.hstack([dg, self._bc_param_slopes(za, za[::-1].copy(), p)]))
             except ValueError:
                 raise
             except Exception:  # noqa: BLE001 - a bc undefined at these jets: assume it reads both ends
                 mask[:] = True
+                slopes = []
                 break
             for side in (0, 1):
                 reads = np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1) | ~np.all(np.isfinite(
@@ -239,6 +248,20 @@ class Collocation:
                 mask[np.ix_(reads, self._bc_cols_pos[side])] = True
         mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
         self._bc_mask = mask
+        # a declaration the probes contradict would give a wrong Jacobian: say so (a problem copied with
+        # dataclasses.replace and another bc keeps the flag)
+        if slopes and not np.allclose(slopes[0], slopes[1], rtol=1e-12, atol=1e-300):
+            raise ValueError("the boundary conditions are declared affine (affine_bc) but their derivatives "
+                             "differ between two points: declare affine_bc=False")
+
+    def _bc_param_slopes(self, za, zb, p) -> np.ndarray:
+        """``dg/dp`` (``(n_bc, len(p))``) by the complex step, one parameter at a time."""
+        out = np.empty((self.n_bc, p.size))
+        for j in range(p.size):
+            pc = p.astype(complex)
+            pc[j] += 1j * COMPLEX_STEP
+            out[:, j] = np.atleast_1d(self.problem.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
+        return out
 
     def _build_pattern(self) -> None:
         pb = self.problem
@@ -269,6 +292,8 @@ class Collocation:
         self._csc_indices = rows[perm].astype(np.int32)
         self._csc_indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=self.size))]).astype(np.int32)
         self.nnz = perm.size
+        self._J_template = canonical_csc(np.zeros(self.nnz), self._csc_indices, self._csc_indptr, self.size)
+        self._bc_block = None  # the boundary rows' Jacobian entries, kept when the conditions are affine
 
     # ---- pointwise derivatives --------------------------------------------------
     def _pointwise_jacobian(self, S, z, p, active):
@@ -341,11 +366,14 @@ class Collocation:
                              f"at each point, got an array of shape {G.shape}")
         G = G.reshape(-1, self.npts)
         za, zb = self.end_jets(x)
-        g = np.atleast_1d(self.problem.bc(za, zb, pf))
+        return np.concatenate([G.T.ravel(), self._bc_values(za, zb, pf)])[self.row_order]
+
+    def _bc_values(self, za, zb, p) -> np.ndarray:
+        g = np.atleast_1d(self.problem.bc(za, zb, p))
         if g.shape != (self.n_bc,):
             raise ValueError(f"bc must return {self.n_bc} conditions (sum of orders + free parameters), "
                              f"got {g.shape[0] if g.ndim else 1}")
-        return np.concatenate([G.T.ravel(), g])[self.row_order]
+        return g
 
     def linearise(self, x: np.ndarray, p: np.ndarray, dparams: Sequence[int] = ()):
         """Residual ``F``, sparse Jacobian ``dF/dx`` (CSC), and ``[dF/dp_j for j in dparams]``."""
@@ -356,7 +384,11 @@ class Collocation:
         n, npts, nz = G.shape[0], self.npts, pb.jet_size
         data = [np.matmul(dGa.transpose(2, 0, 1), self._local_active).ravel()]
         za, zb = self.end_jets(x)
-        g, dg = self._bc_jacobian(za, zb, pf)
+        affine = pb.affine_bc and self._bc_block is not None
+        if affine:  # constant derivatives, kept from the first linearisation
+            g = self._bc_values(za, zb, pf)
+        else:
+            g, dg = self._bc_jacobian(za, zb, pf)
         free = [int(j) for j in pb.free]
         want = free + [int(j) for j in dparams]
         dFp = []
@@ -367,25 +399,34 @@ class Collocation:
                 dGj = np.asarray(pb.residual(self.S, z.astype(complex), pc)).reshape(-1, npts).imag / COMPLEX_STEP
             else:
                 dGj = np.zeros((n, npts))
-            dgj = np.atleast_1d(pb.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
+            dgj = self._bc_dp.get(j) if affine else None
+            if dgj is None:
+                dgj = np.atleast_1d(pb.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
+                if affine:
+                    self._bc_dp[j] = dgj
             dFp.append(np.concatenate([dGj.T.ravel(), dgj]))
         for j in range(len(free)):
             data.append(dFp[j][: n * npts])
-        Jb = np.zeros((self.n_bc, self._bc_cols.size))
-        Jb[:, self._bc_cols_pos[0]] += dg[:, :nz] @ self.end_E[0]
-        Jb[:, self._bc_cols_pos[1]] += dg[:, nz:] @ self.end_E[1]
-        for j in range(len(free)):
-            Jb[:, np.searchsorted(self._bc_cols, self.free_index[j])] += dFp[j][n * npts:]
-        outside = Jb[~self._bc_mask]
-        if outside.size and np.any(outside != 0):
-            # a condition reads an end the pattern did not have: widen it (the row order may change)
-            self._bc_mask |= Jb != 0
-            self._build_pattern()
-            return self.linearise(x, p, dparams)
-        data.append(Jb[self._bc_mask])
+        if affine:
+            data.append(self._bc_block)
+        else:
+            Jb = np.zeros((self.n_bc, self._bc_cols.size))
+            Jb[:, self._bc_cols_pos[0]] += dg[:, :nz] @ self.end_E[0]
+            Jb[:, self._bc_cols_pos[1]] += dg[:, nz:] @ self.end_E[1]
+            for j in range(len(free)):
+                Jb[:, np.searchsorted(self._bc_cols, self.free_index[j])] += dFp[j][n * npts:]
+            outside = Jb[~self._bc_mask]
+            if outside.size and np.any(outside != 0):
+                # a condition reads an end the pattern did not have: widen it (the row order may change)
+                self._bc_mask |= Jb != 0
+                self._build_pattern()
+                return self.linearise(x, p, dparams)
+            data.append(Jb[self._bc_mask])
+            if pb.affine_bc:
+                self._bc_block, self._bc_dp = data[-1], dict(zip(want, (v[n * npts:] for v in dFp)))
         csc = np.empty(self.nnz)
         csc[self._slot] = np.concatenate(data)
-        J = sp.csc_matrix((csc, self._csc_indices, self._csc_indptr), shape=(self.size, self.size))
+        J = csc_with_data(self._J_template, csc)
         F = np.concatenate([G.T.ravel(), g])[self.row_order]
         return F, J, [v[self.row_order] for v in dFp[len(free):]]
 
@@ -420,17 +461,21 @@ class Collocation:
         """Sparse matrix mapping ``x`` to the jets at ``S`` (row ``j * len(S) + q``, as :meth:`jets`)."""
         S = np.atleast_1d(np.asarray(S, float))
         pb = self.problem
-        blocks = []
+        data, indices, widths = [], [], []
         done = {}
         for i, m in enumerate(pb.orders):
             if m not in done:
                 done[m] = self.spaces[i].local(S, m, interval)
             vals, first = done[m]
-            cols = self.index[i][first[:, None] + np.arange(self.k + m)[None, :]]
-            rows = np.repeat(np.arange(S.size), self.k + m)
-            for nu in range(m + 1):
-                blocks.append(sp.csr_matrix((vals[nu].ravel(), (rows, cols.ravel())), shape=(S.size, self.size)))
-        return sp.vstack(blocks, format="csr")
+            cols = self.index[i][first[:, None] + np.arange(self.k + m)[None, :]].ravel()
+            for nu in range(m + 1):  # row j * len(S) + q: the k + m basis functions of field i at S[q]
+                data.append(vals[nu].ravel())
+                indices.append(cols)
+                widths.append(self.k + m)
+        # CSR arrays written directly (one matrix per jet row and a vstack cost ten times more)
+        indptr = np.concatenate([[0], np.cumsum(np.repeat(widths, S.size))])
+        return sp.csr_matrix((np.concatenate(data), np.concatenate(indices), indptr),
+                             shape=(len(widths) * S.size, self.size))
 
     def project(self, funcs: Sequence[Callable], free_values: Sequence[float] = ()) -> np.ndarray:
         """Unknown vector whose fields approximate the callables ``funcs`` (least squares, 3 points per coefficient)."""

@@ -15,6 +15,7 @@ Knows nothing of rods or of collocation. Three pieces:
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -26,6 +27,31 @@ import scipy.sparse.linalg as spla
 
 def max_norm(v: np.ndarray) -> float:
     return float(np.max(np.abs(v))) if v.size else 0.0
+
+
+def canonical_csc(data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, n: int) -> sp.csc_matrix:
+    """An ``n x n`` CSC matrix from arrays with sorted, unique row indices per column, its canonical
+    format recorded: a template for :func:`csc_with_data`. Its index arrays are made read-only, as
+    every matrix made from it shares them (an in-place change, such as ``eliminate_zeros``, raises
+    instead of corrupting the others)."""
+    A = sp.csc_matrix((data, indices, indptr), shape=(n, n))
+    if not A.has_canonical_format:
+        raise ValueError("the pattern has unsorted or duplicate row indices")
+    A.indices.flags.writeable = False
+    A.indptr.flags.writeable = False
+    return A
+
+
+def csc_with_data(template: sp.csc_matrix, data: np.ndarray) -> sp.csc_matrix:
+    """``template``'s structure with new ``data``.
+
+    A shallow copy sharing the template's read-only index arrays: scipy's
+    validation of the structure (a sizeable part of the cost of a small matrix)
+    and its canonical-format test are done once, for the template.
+    """
+    A = copy.copy(template)
+    A.data = data
+    return A
 
 
 # --------------------------------------------------------------------------
@@ -103,9 +129,9 @@ def permutation_sign(perm: np.ndarray) -> int:
     """
     p = np.asarray(perm, dtype=np.int64)
     n = p.size
-    if n == 0:
-        return 1
     label = np.arange(n)
+    if np.array_equal(p, label):  # the column order of a natural-order LU
+        return 1
     step = p.copy()
     for _ in range(max(1, int(np.ceil(np.log2(n))) + 1)):
         label = np.minimum(label, label[step])
@@ -141,6 +167,7 @@ class BorderedPattern:
         new_indices[self.pos_col] = np.arange(n + 1)
         self.indices, self.indptr = new_indices, new_indptr.astype(np.int32)
         self.source = (indices, indptr)
+        self.template = canonical_csc(np.zeros(new_indices.size), self.indices, self.indptr, n + 1)
 
     def assemble(self, J_data: np.ndarray, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
         data = np.empty(self.indices.size)
@@ -148,7 +175,7 @@ class BorderedPattern:
         data[self.pos_row] = c
         data[self.pos_col[:-1]] = b
         data[self.pos_col[-1]] = d
-        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
+        return csc_with_data(self.template, data)
 
 
 _PATTERNS: dict = {}
@@ -163,7 +190,13 @@ def bordered(J, b: np.ndarray, c: np.ndarray, d: float) -> sp.csc_matrix:
     # a discretisation hands out Jacobians of one pattern: keyed by shape and size, checked by value
     key = (n, J.indices.size)
     pat = _PATTERNS.get(key)
-    if pat is None or not (np.array_equal(pat.source[0], J.indices) and np.array_equal(pat.source[1], J.indptr)):
+    # (a collocation's Jacobians share read-only index arrays: then the identity test settles it)
+    frozen = not (J.indices.flags.writeable or J.indptr.flags.writeable)
+    same = pat is not None and ((frozen and pat.source[0] is J.indices and pat.source[1] is J.indptr) or (
+        np.array_equal(pat.source[0], J.indices) and np.array_equal(pat.source[1], J.indptr)))
+    if same:
+        pat.source = (J.indices, J.indptr)  # (equal arrays of another discretisation: identical next time)
+    else:
         pat = BorderedPattern(J.indices, J.indptr, n)
         if len(_PATTERNS) > 16:
             _PATTERNS.clear()

@@ -45,6 +45,7 @@ from dataclasses import dataclass, asdict
 
 import numpy as np
 
+from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
 from .curves import _cross, _dot
@@ -95,13 +96,41 @@ def _director_jets(r1, r2, r3):
 
 def _cross2(a, b):
     """First two components of ``a x b``."""
-    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2]])
+    out = np.empty((2,) + np.broadcast_shapes(a.shape[1:], b.shape[1:]), dtype=np.result_type(a, b))
+    np.multiply(a[1], b[2], out=out[0])
+    out[0] -= a[2] * b[1]
+    np.multiply(a[2], b[0], out=out[1])
+    out[1] -= a[0] * b[2]
+    return out
+
+
+def _cross_axial(r1, v):
+    """``r' x v`` for a straight reference in frame components, ``r' = (a, b, 1)`` and ``v = (v0, v1, 0)``
+    (as ``r''`` and ``r'''`` are): three operations where the general product takes nine, and the same
+    values (the dropped terms are products with 0 and 1)."""
+    out = np.empty(np.broadcast_shapes(r1.shape, v.shape), dtype=np.result_type(r1, v))
+    np.negative(v[1], out=out[0])
+    out[1] = v[0]
+    np.multiply(r1[0], v[1], out=out[2])
+    out[2] -= r1[1] * v[0]
+    return out
+
+
+def _equations(EF, EM, torque):
+    """The six equations ``(6, npts)``: force balance (3), moment on ``K1, K2`` (2), torque (1).
+    (Filled in place: ``np.stack`` of six rows costs more than the rows on a short rod.)"""
+    G = np.empty((6,) + EF.shape[1:], dtype=np.result_type(EF, EM, torque))
+    G[:3] = EF
+    G[3:5] = EM
+    G[5] = torque
+    return G
 
 
 # Tangent helpers for :meth:`EulerianRod.jacobian`: ``dA`` is ``(seeds, 3, npts)`` (or broadcasts to it),
 # ``B`` a ``(3, npts)`` vector; the result carries the seed axis first.
 def _tdot(dA, B):
-    return dA[:, 0] * B[0] + dA[:, 1] * B[1] + dA[:, 2] * B[2]
+    # one einsum instead of five operations (the same sum, in the same order)
+    return np.einsum("sin,in->sn", dA, B)
 
 
 def _seeded_dot(*pairs):
@@ -124,6 +153,15 @@ def _seeded_cross(*pairs):
         out[j + 2, 0] = X[2]
         out[j + 2, 2] = -X[0]
     return out
+
+
+def _evenly(cols):
+    """Evenly spaced increasing indices as a slice."""
+    cols = [int(c) for c in cols]
+    step = cols[1] - cols[0]
+    if step <= 0 or any(b - a != step for a, b in zip(cols, cols[1:])):
+        raise ValueError(f"columns {cols} are not evenly spaced")
+    return slice(cols[0], cols[-1] + 1, step)
 
 
 # The geometric seeds of the straight-reference Jacobian (increasing jet order): the first three
@@ -274,10 +312,15 @@ class EulerianRod:
                                  residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")],
                                  # the hand-derived derivatives cover the straight rod without a wall;
                                  # every other case takes the complex step of its residual
-                                 jacobian=self.jacobian if self.constant_frame and wall is None else None)
+                                 jacobian=self.jacobian if self.constant_frame and wall is None else None,
+                                 affine_bc=True)
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)
+        if self.problem.jacobian is not None:
+            # columns of dG that jacobian fills by blocks, as slices (writes through views, no fancy indexing)
+            pos = self._jet_pos
+            self._dG_cols = (_evenly(pos[list(_SEED_JETS)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
 
     def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
         r = self.rod
@@ -312,8 +355,8 @@ class EulerianRod:
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
         alphap = (_dot(Fp, d3) + _dot(F, d3p)) / EA
-        bend = _cross(r1, r2)
-        uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
+        bend = _cross_axial(r1, r2)
+        uperp_p = ((alphap * bend + alpha * _cross_axial(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
         J1 = alpha / n
         J1p = alphap / n - alpha * c / n3
         # pole p = K3: p.v = v[2], p.(a x b) = a0 b1 - a1 b0
@@ -328,8 +371,10 @@ class EulerianRod:
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
             q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
-        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+            EF[0] += q1
+            EF[1] += q2
+            EF[2] += q3
+        return _equations(EF, EM, mp / GJ)
 
     def jacobian(self, S, z, p):
         """The residual and its exact derivatives w.r.t. the jet (constant frame only), by hand.
@@ -362,9 +407,9 @@ class EulerianRod:
         dq = dr3 - dd3p * d3r2 - d3p * dd3r2[:, None] - dd3 * t1 - d3 * dt1[:, None]
         ec = e * (c / n3)
         dd3pp = (dq - (q / n) * dn[:, None]) / n - (de * c + e * dc[:, None] - ec * dn3[:, None]) / n3
-        bend = _cross(r1, r2)
+        bend = _cross_axial(r1, r2)
         dbend = _seeded_cross((1, r2), (2, -r1))
-        r13 = _cross(r1, r3)
+        r13 = _cross_axial(r1, r3)
         dr13 = _seeded_cross((1, r3), (3, -r1))
         # force-dependent scalars and their derivatives (geometric tangents; d/dF_i, d/dFp_i)
         alpha = 1.0 + _dot(F, d3) / EA
@@ -403,17 +448,20 @@ class EulerianRod:
         gK = self.gK[:, None]
         EF = Fp + (w * n / alpha) * gK
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        G = np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+        G = _equations(EF, EM, mp / GJ)
 
         npts = n.shape[-1]
         pos = self._jet_pos  # jet component -> column of dG
+        seeds, jF, jFp = self._dG_cols
         out = np.zeros((6, self._active.size, npts))
-        geo = np.empty((6, 6, npts))  # (equation, seed, point)
+        geo = out[:, seeds]  # (equation, seed, point): a view
         geo[:3] = (w / alpha)[None, None] * (dn - (n / alpha) * dalpha)[None] * gK[:, None]
         geo[3:5] = (EI * duperp[:, :2] + dm[:, None] * d3p[:2] + m * dd3p[:, :2] + dmp[:, None] * d3[:2]
-                    + mp * dd3[:, :2] + _seeded_cross((1, F))[:, :2]).transpose(1, 0, 2)
+                    + mp * dd3[:, :2]).transpose(1, 0, 2)
+        # and r' x F along its seeds Delta1' (e1 x F) and Delta2' (e2 x F), first two components
+        geo[4, 0] -= F[2]
+        geo[3, 3] += F[2]
         geo[5] = dmp / GJ
-        out[:, pos[list(_SEED_JETS)]] = geo
         # twist rate and its derivative: m = GJ J1 (phi' + tau), mp = GJ (J1p (phi' + tau) + J1 (phi'' + tau'))
         out[3:5, pos[Jet.PHI[1]]] = GJ * (J1 * d3p[:2] + J1p * d3[:2])
         out[5, pos[Jet.PHI[1]]] = J1p
@@ -426,15 +474,15 @@ class EulerianRod:
         mF = GJ * J1F * twist
         mpF = GJ * (J1pF * twist + J1F * ptw)
         mpFp = GJ * J1F * twist
-        jF, jFp = pos[Jet.F], pos[Jet.FP]
         out[:3, jF] = gK[:, None] * (-(w * n / alpha**2) * aF)[None]  # d(w n / alpha)/dF_i
-        out[[0, 1, 2], jFp] = 1.0
+        out[[0, 1, 2], pos[Jet.FP]] = 1.0
         out[3:5, jF] = (EI * (apF[:, None] * bend[:2] + aF[:, None] * W[:2]) / n3
                         + mF[:, None] * d3p[:2] + mpF[:, None] * d3[:2]).transpose(1, 0, 2)
         out[5, jF] = mpF / GJ
         out[3:5, jFp] = (EI * aF[:, None] * bend[:2] / n3 + mpFp[:, None] * d3[:2]).transpose(1, 0, 2)
         out[5, jFp] = mpFp / GJ
         # r' x F: first two components (r'[1] F2 - r'[2] F1, r'[2] F0 - r'[0] F2)
+        jF = pos[Jet.F]
         out[3, jF[1]] -= r1[2]
         out[3, jF[2]] += r1[1]
         out[4, jF[0]] += r1[2]
@@ -443,11 +491,13 @@ class EulerianRod:
 
     def bc(self, za, zb, p):
         """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta``
-        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``."""
+        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``: affine in the jets and
+        the parameters (declared to the collocation, which then differentiates them once)."""
         phi_L, T = p[0], p[1]
         D1, D2, PHI = Jet.D1, Jet.D2, Jet.PHI
         end_phi = phi_L if self.constant_frame else phi_L - self.twist_offset
-        return np.stack([za[D1[0]], za[D1[1]], za[D2[0]], za[D2[1]], zb[D1[0]], zb[D1[1]], zb[D2[0]], zb[D2[1]],
+        # np.array, not np.stack: the same array (the rows have one shape) for a tenth of the cost on scalars
+        return np.array([za[D1[0]], za[D1[1]], za[D2[0]], za[D2[1]], zb[D1[0]], zb[D1[1]], zb[D2[0]], zb[D2[1]],
                          za[PHI[0]], zb[PHI[0]] - end_phi, zb[Jet.F[2]] - T])
 
     # ---- the moving frame ------------------------------------------------------
@@ -551,8 +601,10 @@ class EulerianRod:
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
         if self.wall is not None:
             q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            return np.stack([EF[0] + q1, EF[1] + q2, EF[2] + q3, EM[0], EM[1], mp / GJ])
-        return np.stack([EF[0], EF[1], EF[2], EM[0], EM[1], mp / GJ])
+            EF[0] += q1
+            EF[1] += q2
+            EF[2] += q3
+        return _equations(EF, EM, mp / GJ)
 
     def _axial_curved(self, S, z, p):
         """:meth:`_axial_quantities` with a moving frame."""
@@ -757,7 +809,7 @@ class _Outputs:
         t = np.linspace(0.0, 1.0, samples + 1)[:-1]
         S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
         self.S = S
-        nodes = np.concatenate([[-1.0], np.polynomial.legendre.leggauss(disc.k)[0], [1.0]])
+        nodes = np.concatenate([[-1.0], gauss_legendre(disc.k)[0], [1.0]])
         mids = 0.5 * (nodes[1:] + nodes[:-1])
         self.S_check = (b[:-1, None] + 0.5 * np.diff(b)[:, None] * (mids[None, :] + 1.0)).ravel()
         nz = disc.problem.jet_size
@@ -772,6 +824,7 @@ class _Outputs:
             rows.append((np.arange(nz)[:, None] * npts + lo + np.arange(n)[None, :]).ravel())
         self.E = Z[np.concatenate(rows)]
         self.nz = nz
+        self.S_axial = np.concatenate([disc.S, b])  # collocation and mesh points: one call for both
 
     def _split(self, x):
         v = self.E @ x
@@ -785,11 +838,13 @@ class _Outputs:
     def __call__(self, x, p):
         model, disc = self.model, self.disc
         z = disc.jets(x)
-        _, alpha, n, _ = model._axial_quantities(disc.S, z, p)
+        D1, D2, d1p, d2p, zm, zc = self._split(x)
+        m, alpha, n, _ = model._axial_quantities(self.S_axial, np.concatenate([z, zm], axis=1), p)
+        npts = disc.npts
+        alpha, n, m_mesh = alpha[:npts], n[:npts], m[npts:]
         L = model.rod.L
         l = disc.integrate(n)
         l0 = disc.integrate(n / alpha)
-        D1, D2, d1p, d2p, zm, zc = self._split(x)
         if model.constant_frame:
             # alignment d3 . K3 on the sample grid (straight reference: K3 constant)
             align = 1.0 / np.sqrt(1.0 + d1p**2 + d2p**2)
@@ -801,7 +856,6 @@ class _Outputs:
             t3 = 1.0 - k[0, 0] * D1 - k[1, 0] * D2
             align = t3 / np.sqrt(t1**2 + t2**2 + t3**2)
             d1p, d2p = t1 / t3, t2 / t3
-        m_mesh = model._axial_quantities(self.disc.breakpoints, zm, p)[0]
         G = np.abs(model.residual(self.S_check, zc, p)).max(axis=1)
         return dict(stretch=(l - L) / L, torque=float(np.mean(m_mesh)), l=l, l0=l0,
                     alpha_min=float(np.min(alpha)),

@@ -654,7 +654,7 @@ def sleeve_system(rod, T: float, N: int = 15, k: int = 5, breakpoints=None):
 
     from .collocation import Collocation
     new = copy.copy(base)
-    new.disc = Collocation(dataclasses.replace(model.problem, bc=bc), base.disc.breakpoints, k)
+    new.disc = Collocation(dataclasses.replace(model.problem, bc=bc, affine_bc=False), base.disc.breakpoints, k)
     return new
 
 
