@@ -233,6 +233,7 @@ class EulerianRod:
             self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
             self.gK = self.frame @ self.g  # weight direction in frame components
             self.twist_offset = 0.0
+            self.joins = np.zeros(0)  # a constant frame: no curvature to jump
             interval = (0.0, self.rod.L)
             # The residual reads the jets through r' and its derivatives: with a constant frame the
             # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
@@ -253,8 +254,6 @@ class EulerianRod:
             unused = (Jet.PHI[0],)
         if wall is not None:  # the contact force reads the deflection itself
             unused = (Jet.PHI[0],)
-        if self.constant_frame:
-            self.joins = np.zeros(0)
         self.interval = interval
         # mesh breakpoints: a well's stations (its curvature jumps) and a clearance table's (its slope jumps)
         stations = [interval[0], interval[1]]
