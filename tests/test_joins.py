@@ -196,3 +196,15 @@ def test_the_fold_on_a_well_reference_is_the_problem_fold():
         assert abs(pw.data[key] - ps.data[key]) < 1e-8, key
     assert abs(pw.data["torque"] - ps.data["torque"]) < 1e-7
     assert centreline_distance(straight, ss.disc, ps.x, well, sw.disc, pw.x) < 1e-8
+
+
+def test_an_adaptive_trace_on_a_well_keeps_its_joins():
+    """rodcont.trace on the S-well remeshes (error estimate in a richer space, equidistribution, stations
+    conformed) with the joins in every mesh, and locates the problem's fold (measured 13.0999938235 on
+    meshes of 16 .. 77 subintervals; the straight reference's trace gives 13.0999938230)."""
+    import rodcont
+    well = s_well()
+    b = rodcont.trace(1.0, N=15, curve=well, p_range=(0, 16))
+    assert b.remeshes >= 1 and len({np.asarray(m).size for m in b.meshes}) > 1
+    assert all(np.all(np.isin(well.breakpoints, np.asarray(m))) for m in b.meshes)
+    assert b.folds[0]["phi_L"] == pytest.approx(13.099993823, abs=1e-9)  # tests/lagrangian_reference.py
