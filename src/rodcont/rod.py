@@ -35,6 +35,12 @@ For a straight reference (``k = 0``) every added term vanishes; that case
 keeps its own, cheaper residual. The end twist condition becomes
 ``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
 between the ends (:attr:`rodcont.curves.ReferenceCurve.end_twist`).
+
+Joins. Where the reference's curvature jumps (a well's stations,
+:attr:`rodcont.curves.ReferenceCurve.curvature_jumps`) the physical rod is
+smooth but ``Delta'``, ``Delta''``, ``phi'`` jump: there ``Delta1, Delta2, phi``
+are only C^0 and the interface conditions (:meth:`EulerianRod.interface`)
+are the continuity of ``d3``, of ``u_perp`` (on ``K1, K2``) and of ``m / GJ``.
 """
 
 from __future__ import annotations
