@@ -455,15 +455,15 @@ def test_in_continuous_contact_the_wall_force_is_the_soft_string_force():
     soft-string (Johancsik) normal force N kappa - w sin(inclination), per unit conduit length, with the
     rod's own axial force N and curvature kappa (by differences of the drawn centreline): bending
     carries no shear there. Measured to 1.1e-5; the contact law's eps = 1e-5."""
-    import warnings
     from rodcont.curves import parse_reference
     curve = parse_reference(f"well:{os.path.join(EXAMPLES, 'well_build_and_hold.csv')}", 1.0)
     rod = RodParameters(EI=1.25e6, GJ=9.6e5, EA=7.15e8, w=235.0, L=curve.span)  # 5" drill pipe, buoyed
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the stations' curvature jumps (README: limits)
-        eq = solve_equilibrium(None, 0.0, rod, N=300, T=1e5, curve=curve, wall=Wall(0.05))
-    zone = eq.contact()["zones"][0]
-    assert zone[0] == pytest.approx(300, abs=2) and zone[1] > 580  # the build runs from MD 300 to 600
+    eq = solve_equilibrium(None, 0.0, rod, N=300, T=1e5, curve=curve, wall=Wall(0.05))
+    # The build runs from MD 300 to 600. The stiff pipe enters it over a few sqrt(EI/N) = 2.2 m: it touches
+    # the wall at a point (302), lifts off, and lies on it from 303.5 (with the stations' curvature jumps
+    # smoothed by the C^2 splines, a spurious moment EI |jump of k| had it on the wall from 300.6).
+    zones = eq.contact()["zones"]
+    assert 301 < zones[0][0] < 304 and any(a < 305 and b > 580 for a, b, _ in zones)
     model, disc = eq.system.model, eq.system.disc
     S = np.linspace(350, 550, 9)
     con = model.contact(disc, eq.x, eq.system.params(0.0), S=S)

@@ -577,14 +577,21 @@ def test_love_helix(frame, N, tol_F):
         assert np.max(np.abs(d1 - (np.cos(phi) * K[0] + np.sin(phi) * K[1]))) < 100 * tol
 
 
-def test_well_reference_warns_about_curvature_jumps():
-    """At a station where the curvature jumps the exact Delta', Delta'' and phi' jump, which the C^2 / C^1
-    splines of the collocation core cannot represent: the model says so."""
+def test_well_reference_makes_its_curvature_jumps_joins():
+    """At a station where the curvature jumps the exact Delta', Delta'' and phi' jump: the model makes the
+    stations joins of the collocation (Delta, phi only C^0 there, 5 interface conditions each), silently;
+    a mesh without them is refused. The physics of the joins: tests/test_joins.py."""
+    import warnings
     well = MinimumCurvatureWell([[0, 90, 90], [0.25, 80, 90], [0.75, 100, 90], [1.0, 90, 90]])
-    with pytest.warns(RuntimeWarning, match="curvature jumps at 2 point"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         model = EulerianRod(RodParameters(L=well.span), well)
+    assert np.array_equal(model.problem.joins, [0.25, 0.75])
     disc = model.discretise(10)
     assert np.all(np.isin(well.breakpoints, disc.breakpoints))
+    assert disc.n_interface == 10 and disc.size == 6 * 10 * 5 + 11 + 10
+    with pytest.raises(ValueError, match="join must be an interior breakpoint"):
+        model.discretise(breakpoints=np.linspace(0, 1, 11))
     with pytest.raises(ValueError, match="span"):
         EulerianRod(RodParameters(L=1.0), well)
 

@@ -7,6 +7,11 @@ Christiansen & Russell 1979); the space has dimension ``N k + m``. On
 subinterval ``j`` exactly ``k + m`` of them are nonzero, those numbered
 ``j k ... j k + k + m - 1``.
 
+A *join* lowers the continuity at chosen interior breakpoints: ``extra[i]``
+more copies of breakpoint ``i + 1`` (``k + e`` in all) leave the space
+``C^(m-1-e)`` there and add ``e`` functions; subinterval ``j`` then starts at
+function ``j k + E_j``, ``E_j`` the extra copies at breakpoints ``1 .. j``.
+
 Values and derivatives are computed by the Cox-de Boor recurrence with the
 derivative algorithm A2.3 of Piegl & Tiller (*The NURBS Book*), vectorised
 over the evaluation points (the loops run over the degree only). No
@@ -49,17 +54,26 @@ def locate(breakpoints: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 class SplineSpace:
-    """``P_{k+m} ∩ C^{m-1}`` on the partition ``breakpoints`` (order ``k+m`` B-splines)."""
+    """``P_{k+m} ∩ C^{m-1}`` on the partition ``breakpoints`` (order ``k+m`` B-splines).
 
-    def __init__(self, breakpoints: np.ndarray, k: int, m: int):
+    ``extra`` (optional, one integer ``0 <= e <= m - 1`` per interior breakpoint):
+    only ``C^(m-1-e)`` at that breakpoint (a join), ``dim = N k + m + sum(extra)``.
+    """
+
+    def __init__(self, breakpoints: np.ndarray, k: int, m: int, extra: np.ndarray | None = None):
         self.breakpoints = b = np.asarray(breakpoints, dtype=float)
         self.k, self.m = int(k), int(m)
         self.order = self.k + self.m
         self.degree = self.order - 1
         self.N = b.size - 1
+        e = np.zeros(self.N - 1, int) if extra is None else np.asarray(extra, int)
+        if e.shape != (self.N - 1,) or np.any(e < 0) or np.any(e > self.m - 1):
+            raise ValueError(f"extra multiplicities: one integer in 0..{self.m - 1} per interior breakpoint")
+        self.extra = e
+        self.shift = np.concatenate([[0], np.cumsum(e)])  # E_j: extra knots before subinterval j
         self.knots = np.concatenate(
-            [np.full(self.order, b[0]), np.repeat(b[1:-1], self.k), np.full(self.order, b[-1])])
-        self.dim = self.N * self.k + self.m
+            [np.full(self.order, b[0]), np.repeat(b[1:-1], self.k + e), np.full(self.order, b[-1])])
+        self.dim = self.N * self.k + self.m + int(e.sum())
 
     def local(self, x: np.ndarray, nu_max: int = 0, interval: np.ndarray | None = None):
         """The ``order`` basis functions nonzero at each ``x`` and their derivatives.
@@ -72,7 +86,7 @@ class SplineSpace:
         x = np.clip(np.atleast_1d(np.asarray(x, dtype=float)), self.breakpoints[0], self.breakpoints[-1])
         j = locate(self.breakpoints, x) if interval is None else np.asarray(interval)
         p, t = self.degree, self.knots
-        span = p + j * self.k
+        span = p + j * self.k + self.shift[j]
         npts = x.size
         nd = min(nu_max, p)
         # ndu[a, b]: upper triangle (a <= b) the basis values of degree b, lower triangle

@@ -41,6 +41,17 @@ free parameters)::
     [.xxxxxx......]   point 1
     ...
     [.........xxxx]   boundary conditions at b
+
+Joins (optional). A problem may declare interior points ``S_J`` (``joins``)
+where field ``i`` is only ``C^(c_i)`` (``join_continuity``, ``c_i <= m_i - 1``)
+and interface conditions ``h(z(S_J-), z(S_J+), p, S_J) = 0`` hold, ``z(S_J-)``,
+``z(S_J+)`` the one-sided jets. Each join is a breakpoint of every mesh; its
+knots are repeated ``k + m_i - 1 - c_i`` times, so it adds
+``sum(m_i - 1 - c_i)`` coefficients, as many as the interface conditions.
+Their rows read the basis functions nonzero on the two subintervals that meet
+there (and the free parameters): declared, not sampled. The derivatives come
+from one complex-step call over all joins and both one-sided jets. A point
+evaluated exactly at a join belongs to its right subinterval (as everywhere).
 """
 
 from __future__ import annotations
@@ -82,6 +93,11 @@ class BVProblem:
     all); ``residual_params``: the parameters it depends on (default: all).
     Declaring fewer saves work; a wrong declaration gives a wrong Jacobian,
     which ``tests`` check against the complex step of everything.
+    ``joins``, ``join_continuity``, ``interface`` (optional, see the module
+    docstring): interior points ``S_J``, the continuity ``c_i`` of each field
+    there, and ``interface(zl, zr, p, S) -> (sum(m_i - 1 - c_i), nb)`` with
+    ``zl, zr`` one-sided jets ``(jet_size, nb)`` and ``S`` ``(nb,)`` their
+    joins (it must broadcast over that batch axis, analytic operations only).
     ``jacobian`` (optional): ``jacobian(S, z, p) -> (G, dG)``, the residual and
     its exact derivatives with respect to the declared jet components
     (``(n, na, npts)``, components in increasing order), for a problem that
@@ -105,6 +121,9 @@ class BVProblem:
     residual_params: Sequence[int] | None = None
     jacobian: Callable | None = None
     affine_bc: bool = False
+    joins: Sequence[float] = ()
+    join_continuity: Sequence[int] | None = None
+    interface: Callable | None = None
 
     @property
     def n_fields(self) -> int:
@@ -150,8 +169,15 @@ class Collocation:
         self.breakpoints = b
         self.k = k = int(k)
         self.N = N = b.size - 1
-        spaces = {m: SplineSpace(b, k, m) for m in sorted(set(pb.orders))}
-        self.spaces = [spaces[m] for m in pb.orders]
+        self._setup_joins(b)
+        # one space per (order, extra multiplicity at the joins): fields that share it share its bases
+        keys = [(m, int(e)) for m, e in zip(pb.orders, self.join_extra)]
+        spaces = {}
+        for m, e in sorted(set(keys)):
+            extra = np.zeros(N - 1, int)
+            extra[self.join_at - 1] = e
+            spaces[(m, e)] = SplineSpace(b, k, m, extra)
+        self.spaces = [spaces[key] for key in keys]
         self.n_free = len(pb.free)
         n_coef = int(sum(s.dim for s in self.spaces))
         self.size = n_coef + self.n_free
@@ -159,7 +185,7 @@ class Collocation:
         self.npts = npts = self.S.size
         n, nz = pb.n_fields, pb.jet_size
         self.jet_rows = np.concatenate([[0], np.cumsum([m + 1 for m in pb.orders])])
-        self.n_bc = self.size - n * npts
+        self.n_bc = self.size - n * npts - self.n_interface
         if self.n_bc < 0:
             raise ValueError("more collocation equations than unknowns")
         self.active = np.arange(nz) if pb.jet_dependence is None else np.unique(np.asarray(pb.jet_dependence, int))
@@ -182,13 +208,13 @@ class Collocation:
         # Local bases at the collocation points: values of the k + m_i basis functions
         # nonzero at each point, for every derivative up to the field's order.
         interval = np.repeat(np.arange(N), k)
-        local = {m: spaces[m].local(self.S, m, interval) for m in spaces}
+        local = {key: spaces[key].local(self.S, key[0], interval) for key in spaces}
         widths = [k + m for m in pb.orders]
         wstart = np.concatenate([[0], np.cumsum(widths)])
         L = np.zeros((npts, nz, wstart[-1]))
         cols = np.empty((npts, wstart[-1]), int)
         for i, m in enumerate(pb.orders):
-            vals, first = local[m]
+            vals, first = local[keys[i]]
             L[:, self.jet_rows[i]:self.jet_rows[i + 1], wstart[i]:wstart[i + 1]] = vals.transpose(1, 0, 2)
             cols[:, wstart[i]:wstart[i + 1]] = self.index[i][first[:, None] + np.arange(k + m)[None, :]]
         self._local_cols_all = cols
@@ -200,19 +226,118 @@ class Collocation:
                                shape=(nz * npts, self.size))
         # Jets at the two ends: small dense blocks on the columns of the basis functions nonzero there.
         self.end_cols, self.end_E = [], []
-        at_ends = {m: spaces[m].local(b[[0, -1]], m, np.array([0, N - 1])) for m in spaces}
+        at_ends = {key: spaces[key].local(b[[0, -1]], key[0], np.array([0, N - 1])) for key in spaces}
         for side in (0, 1):
             ecols, blocks = [], []
             for i, m in enumerate(pb.orders):
-                vals, first = at_ends[m]
+                vals, first = at_ends[keys[i]]
                 ecols.append(self.index[i][first[side] + np.arange(k + m)])
                 blk = np.zeros((nz, k + m))
                 blk[self.jet_rows[i]:self.jet_rows[i + 1]] = vals[:, side, :]
                 blocks.append(blk)
             self.end_cols.append(np.concatenate(ecols))
             self.end_E.append(np.concatenate(blocks, axis=1))  # (nz, ncols_end)
+        self._interface_bases()
         self._check_bc_count()
         self._build_pattern()
+
+    # ---- joins -------------------------------------------------------------
+    def _setup_joins(self, b: np.ndarray) -> None:
+        """``join_at``: the breakpoint index of each join; ``join_extra``: the knots each field gains there."""
+        pb = self.problem
+        S = np.unique(np.asarray(pb.joins, float))
+        self.joins = S
+        self.join_extra = np.zeros(pb.n_fields, int)
+        self.join_at = np.zeros(0, int)
+        self.n_interface = 0
+        if S.size == 0:
+            return
+        if pb.interface is None or pb.join_continuity is None or len(pb.join_continuity) != pb.n_fields:
+            raise ValueError("joins need an interface function and a join_continuity for every field")
+        c = np.asarray(pb.join_continuity, int)
+        m = np.asarray(pb.orders, int)
+        if np.any(c < 0) or np.any(c > m - 1):
+            raise ValueError(f"join_continuity must lie in 0 .. order - 1 for each field, got {list(c)}")
+        tol = 1e-12 * (b[-1] - b[0])
+        at = np.clip(np.searchsorted(b, S), 1, b.size - 2)
+        at = np.where((at > 1) & (np.abs(b[at - 1] - S) < np.abs(b[at] - S)), at - 1, at)
+        if np.any(S <= b[0] + tol) or np.any(S >= b[-1] - tol) or np.any(np.abs(b[at] - S) > tol):
+            missing = [f"{v:.10g}" for v in S[np.abs(b[at] - S) > tol]]
+            raise ValueError(f"every join must be an interior breakpoint of the mesh: missing "
+                             f"{', '.join(missing[:4]) or 'an end'}{', ...' if len(missing) > 4 else ''}")
+        self.join_at = at = np.unique(at)  # two joins within rounding of one breakpoint are one join
+        self.joins = b[at]  # the breakpoint itself, not a value within rounding of it
+        self.join_extra = m - 1 - c
+        self.n_interface = int(self.join_extra.sum()) * at.size
+
+    def _interface_bases(self) -> None:
+        """One-sided jets at the joins: ``z(S_J-) = EL[J] @ x[IC[J]]``, ``z(S_J+) = ER[J] @ x[IC[J]]``,
+        ``IC[J]`` the columns of the basis functions nonzero on either subinterval at the join."""
+        nj, nz, k = self.join_at.size, self.problem.jet_size, self.k
+        if nj == 0:
+            return
+        cols, EL, ER = [], [], []
+        for i, (m, sp_i) in enumerate(zip(self.problem.orders, self.spaces)):
+            w = 2 * k + m + int(self.join_extra[i])  # left functions, then the right ones (overlap c_i + 1)
+            vl, fl = sp_i.local(self.joins, m, self.join_at - 1)
+            vr, fr = sp_i.local(self.joins, m, self.join_at)
+            assert np.all(fr - fl == w - k - m), "the right subinterval's functions start k + e further"
+            cols.append(self.index[i][fl[:, None] + np.arange(w)[None, :]])
+            rows = slice(self.jet_rows[i], self.jet_rows[i + 1])
+            for vals, off, out in ((vl, 0, EL), (vr, w - k - m, ER)):
+                blk = np.zeros((nj, nz, w))
+                blk[:, rows, off:off + k + m] = vals.transpose(1, 0, 2)
+                out.append(blk)
+        self.iface_cols = np.concatenate(cols, axis=1)      # (nj, width)
+        self.iface_EL = np.concatenate(EL, axis=2)          # (nj, nz, width)
+        self.iface_ER = np.concatenate(ER, axis=2)
+
+    def interface_jets(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The one-sided jets ``(jet_size, n_joins)`` left and right of the joins."""
+        c = x[self.iface_cols]
+        return np.einsum("jzc,jc->zj", self.iface_EL, c), np.einsum("jzc,jc->zj", self.iface_ER, c)
+
+    def _interface_residual(self, x: np.ndarray, pf: np.ndarray) -> np.ndarray:
+        """Interface conditions, join after join (natural order)."""
+        if not self.n_interface:
+            return np.zeros(0)
+        zl, zr = self.interface_jets(x)
+        h = np.asarray(self.problem.interface(zl, zr, pf, self.joins))
+        per = self.n_interface // self.joins.size
+        if h.shape != (per, self.joins.size):
+            raise ValueError(f"interface must return {per} conditions per join (the continuity given up), "
+                             f"got shape {h.shape}")
+        return h.T.ravel()
+
+    def _interface_dp(self, x: np.ndarray, pc: np.ndarray) -> np.ndarray:
+        """Imaginary part of the interface conditions at the complex-stepped parameters ``pc``, over the step."""
+        if not self.n_interface:
+            return np.zeros(0)
+        zl, zr = self.interface_jets(x)
+        h = np.asarray(self.problem.interface(zl.astype(complex), zr.astype(complex), pc, self.joins))
+        return h.T.ravel().imag / COMPLEX_STEP
+
+    def _interface_jacobian(self, x: np.ndarray, pf: np.ndarray):
+        """``h`` (natural order) and ``dh/dx`` as ``(n_joins, per, width)`` on the columns ``iface_cols``.
+
+        One complex-step call: every join, unperturbed and with each of the ``2 jet_size`` one-sided
+        jet components stepped (``h`` depends on nothing else of ``x``)."""
+        zl, zr = self.interface_jets(x)
+        nz, nj = zl.shape
+        nb = 2 * nz + 1
+        Z = np.repeat(np.concatenate([zl, zr]).astype(complex)[:, :, None], nb, axis=2)  # (2nz, nj, nb)
+        Z[np.arange(2 * nz), :, np.arange(1, nb)] += 1j * COMPLEX_STEP
+        Z = Z.reshape(2 * nz, nj * nb)
+        h = np.asarray(self.problem.interface(Z[:nz], Z[nz:], pf, np.repeat(self.joins, nb)))
+        per = self.n_interface // nj
+        if h.shape != (per, nj * nb):
+            raise ValueError(f"interface must return {per} conditions per join (the continuity given up), "
+                             f"got shape {h.shape[:1]}")
+        h = h.reshape(per, nj, nb)
+        dh = h[:, :, 1:].imag / COMPLEX_STEP                  # (per, nj, 2 nz)
+        dl, dr = dh[:, :, :nz].transpose(1, 0, 2), dh[:, :, nz:].transpose(1, 0, 2)
+        dx = np.matmul(dl, self.iface_EL) + np.matmul(dr, self.iface_ER)  # (nj, per, width)
+        return h[:, :, 0].real.T.ravel(), dx
 
     def _check_bc_count(self) -> None:
         """The number of boundary conditions is structural: check it once, at unit jets.
@@ -276,6 +401,15 @@ class Collocation:
         bc_r, bc_c = np.nonzero(self._bc_mask)
         rows.append(n * npts + bc_r)
         cols.append(self._bc_cols[bc_c])
+        if self.n_interface:  # each interface row reads both subintervals at its join, and the free parameters
+            nj, width = self.iface_cols.shape
+            per = self.n_interface // nj
+            r = n * npts + self.n_bc + np.arange(self.n_interface).reshape(nj, per, 1)
+            rows.append(np.broadcast_to(r, (nj, per, width)).ravel())
+            cols.append(np.broadcast_to(self.iface_cols[:, None, :], (nj, per, width)).ravel())
+            for j in self.free_index:
+                rows.append(n * npts + self.n_bc + np.arange(self.n_interface))
+                cols.append(np.full(self.n_interface, j))
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         # Order the conditions along the span: each row by the mean of its columns.
         centre = np.bincount(rows, weights=cols, minlength=self.size) / np.maximum(np.bincount(rows, minlength=self.size), 1)
@@ -366,7 +500,8 @@ class Collocation:
                              f"at each point, got an array of shape {G.shape}")
         G = G.reshape(-1, self.npts)
         za, zb = self.end_jets(x)
-        return np.concatenate([G.T.ravel(), self._bc_values(za, zb, pf)])[self.row_order]
+        return np.concatenate([G.T.ravel(), self._bc_values(za, zb, pf),
+                               self._interface_residual(x, pf)])[self.row_order]
 
     def _bc_values(self, za, zb, p) -> np.ndarray:
         g = np.atleast_1d(self.problem.bc(za, zb, p))
@@ -404,7 +539,7 @@ class Collocation:
                 dgj = np.atleast_1d(pb.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
                 if affine:
                     self._bc_dp[j] = dgj
-            dFp.append(np.concatenate([dGj.T.ravel(), dgj]))
+            dFp.append(np.concatenate([dGj.T.ravel(), dgj, self._interface_dp(x, pc)]))
         for j in range(len(free)):
             data.append(dFp[j][: n * npts])
         if affine:
@@ -414,7 +549,7 @@ class Collocation:
             Jb[:, self._bc_cols_pos[0]] += dg[:, :nz] @ self.end_E[0]
             Jb[:, self._bc_cols_pos[1]] += dg[:, nz:] @ self.end_E[1]
             for j in range(len(free)):
-                Jb[:, np.searchsorted(self._bc_cols, self.free_index[j])] += dFp[j][n * npts:]
+                Jb[:, np.searchsorted(self._bc_cols, self.free_index[j])] += dFp[j][n * npts:n * npts + self.n_bc]
             outside = Jb[~self._bc_mask]
             if outside.size and np.any(outside != 0):
                 # a condition reads an end the pattern did not have: widen it (the row order may change)
@@ -423,11 +558,17 @@ class Collocation:
                 return self.linearise(x, p, dparams)
             data.append(Jb[self._bc_mask])
             if pb.affine_bc:
-                self._bc_block, self._bc_dp = data[-1], dict(zip(want, (v[n * npts:] for v in dFp)))
+                self._bc_block = data[-1]
+                self._bc_dp = dict(zip(want, (v[n * npts:n * npts + self.n_bc] for v in dFp)))
+        h = np.zeros(0)
+        if self.n_interface:
+            h, dh = self._interface_jacobian(x, pf)
+            data.append(dh.ravel())
+            data += [dFp[j][n * npts + self.n_bc:] for j in range(len(free))]
         csc = np.empty(self.nnz)
         csc[self._slot] = np.concatenate(data)
         J = csc_with_data(self._J_template, csc)
-        F = np.concatenate([G.T.ravel(), g])[self.row_order]
+        F = np.concatenate([G.T.ravel(), g, h])[self.row_order]
         return F, J, [v[self.row_order] for v in dFp[len(free):]]
 
     def jacobian(self, x: np.ndarray, p: np.ndarray) -> sp.csc_matrix:
@@ -464,9 +605,9 @@ class Collocation:
         data, indices, widths = [], [], []
         done = {}
         for i, m in enumerate(pb.orders):
-            if m not in done:
-                done[m] = self.spaces[i].local(S, m, interval)
-            vals, first = done[m]
+            if id(self.spaces[i]) not in done:  # fields that share a space share its bases
+                done[id(self.spaces[i])] = self.spaces[i].local(S, m, interval)
+            vals, first = done[id(self.spaces[i])]
             cols = self.index[i][first[:, None] + np.arange(self.k + m)[None, :]].ravel()
             for nu in range(m + 1):  # row j * len(S) + q: the k + m basis functions of field i at S[q]
                 data.append(vals[nu].ravel())
@@ -497,7 +638,8 @@ class Collocation:
         carries a solution and its tangent over).
         """
         # keyed by the source's mesh, not the object: a remeshed trace must not keep old meshes alive
-        key = (source.breakpoints.tobytes(), source.k, tuple(source.problem.orders))
+        key = (source.breakpoints.tobytes(), source.k, tuple(source.problem.orders),
+               tuple(source.join_extra), source.joins.tobytes())
         cached = getattr(self, "_transfer_from", None)
         if cached is None or cached[0] != key:
             cached = self._transfer_from = (key, self._transfer_parts(source))
@@ -518,7 +660,8 @@ class Collocation:
         npts = S.size
         per_order, parts = {}, []
         for i, m in enumerate(self.problem.orders):
-            if m not in per_order:
+            key = (id(self.spaces[i]), id(source.spaces[i]))  # fields that share both spaces share the matrices
+            if key not in per_order:
                 vals, first = self.spaces[i].local(S, m)
                 svals, sfirst = source.spaces[i].local(S, m)
                 order = self.spaces[i].order
@@ -530,8 +673,8 @@ class Collocation:
                 A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
                 scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
                 At = A.T.tocsr()
-                per_order[m] = (m, At, (At @ A).tocsc(), svals[:m + 1], scols, w)
-            parts.append(per_order[m])
+                per_order[key] = (m, At, (At @ A).tocsc(), svals[:m + 1], scols, w)
+            parts.append(per_order[key])
         return parts
 
     def integrate(self, values: np.ndarray) -> float:

@@ -313,9 +313,9 @@ class ReferenceCurve:
         continuous (no point moment) while the reference's jumps, so ``Delta''``
         jumps by about ``-(jump of k)``; and the sections turn at a rate that
         jumps, so ``s'(S)``, ``Delta'`` (by ``h = 1 - k.Delta``) and ``phi'`` jump
-        wherever ``Delta != 0``. The spline spaces keep ``Delta`` C^2 and ``phi``
-        C^1 across every breakpoint: a curve with such points needs reduced
-        continuity there and interface conditions (not in the collocation core).
+        wherever ``Delta != 0``. The rod model makes them joins of the
+        collocation: ``Delta`` and ``phi`` only C^0 there, with the continuity of
+        the physical rod as interface conditions (:meth:`rodcont.rod.EulerianRod.interface`).
         """
         b = self.breakpoints[1:-1]
         if b.size == 0:
@@ -325,6 +325,13 @@ class ReferenceCurve:
         scale = np.max(np.abs(np.concatenate([left[:2, 0], right[:2, 0]], axis=1)), initial=0.0) + 1.0 / self.length
         jump = np.max(np.abs(left[:2, 0] - right[:2, 0]), axis=0)
         return b[jump > 1e-6 * scale]
+
+    def one_sided_jet(self, S, side: int) -> CurveJet:
+        """The curve just left (``side = -1``) or right (``+1``) of the points ``S``: where the curvature
+        jumps, its one-sided limits. Default: :meth:`jet` at ``S -+ 1e-12 length`` (an error of
+        ``1e-12 length |k'|``); a piecewise curve overrides it with its pieces' exact limits."""
+        S = np.atleast_1d(np.asarray(S, float))
+        return self.jet(np.clip(S + side * 1e-12 * self.length, 0.0, self.length))
 
     def mesh(self, N: int) -> np.ndarray:
         """``N`` subintervals containing every breakpoint (:func:`mesh_through`)."""
@@ -806,8 +813,15 @@ class MinimumCurvatureWell(ReferenceCurve):
         return self.md - self.md[0]
 
     def jet(self, S) -> CurveJet:
+        return self._jet(S, "right")
+
+    def one_sided_jet(self, S, side: int) -> CurveJet:
+        """Exact one-sided limits: a station belongs to the arc before it (``side = -1``) or after it."""
+        return self._jet(S, "left" if side < 0 else "right")
+
+    def _jet(self, S, station_side: str) -> CurveJet:
         S = np.atleast_1d(np.asarray(S, float))
-        i = np.clip(np.searchsorted(self._S0, S, side="right") - 1, 0, self._S0.size - 1)
+        i = np.clip(np.searchsorted(self._S0, S, side=station_side) - 1, 0, self._S0.size - 1)
         sig = S - self._S0[i]
         kap = self._kappa[i]
         t, n, b = self._t[i].T, self._n[i].T, self._b[i].T

@@ -164,12 +164,13 @@ def _embedding(coarse, fine):
     from .bspline import gauss_points
     per_order, solvers = {}, []
     for i, m in enumerate(coarse.problem.orders):
-        if m not in per_order:
+        key = (id(coarse.spaces[i]), id(fine.spaces[i]))  # fields that share both spaces share the factors
+        if key not in per_order:
             pts = gauss_points(fine.breakpoints, fine.k + m)[0]
             A = fine.spaces[i].matrix(pts)
             vals, first = coarse.spaces[i].local(pts, 0)
-            per_order[m] = (A.T, spla.splu((A.T @ A).tocsc()), vals[0].ravel(), first, pts.size)
-        At, lu, bvals, first, npts = per_order[m]
+            per_order[key] = (A.T, spla.splu((A.T @ A).tocsc()), vals[0].ravel(), first, pts.size)
+        At, lu, bvals, first, npts = per_order[key]
         order = coarse.spaces[i].order
         # coarse.evaluation_matrix(pts, i), from the values shared by the fields of this order
         B = sp.csr_matrix((bvals, (np.repeat(np.arange(npts), order),

@@ -35,12 +35,17 @@ For a straight reference (``k = 0``) every added term vanishes; that case
 keeps its own, cheaper residual. The end twist condition becomes
 ``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
 between the ends (:attr:`rodcont.curves.ReferenceCurve.end_twist`).
+
+Joins. Where the reference's curvature jumps (a well's stations,
+:attr:`rodcont.curves.ReferenceCurve.curvature_jumps`) the physical rod is
+smooth but ``Delta'``, ``Delta''``, ``phi'`` jump: there ``Delta1, Delta2, phi``
+are only C^0 and the interface conditions (:meth:`EulerianRod.interface`)
+are the continuity of ``d3``, of ``u_perp`` (on ``K1, K2``) and of ``m / GJ``.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, asdict
 
 import numpy as np
@@ -272,6 +277,7 @@ class EulerianRod:
             self.frame = np.stack([self.K1, self.K2, self.pole])  # rows: K1, K2, K3 (global components)
             self.gK = self.frame @ self.g  # weight direction in frame components
             self.twist_offset = 0.0
+            self.joins = np.zeros(0)  # a constant frame: no curvature to jump
             interval = (0.0, self.rod.L)
             # The residual reads the jets through r' and its derivatives: with a constant frame the
             # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
@@ -284,15 +290,9 @@ class EulerianRod:
             self._curve_cache: dict = {}  # grid bytes -> data, least recently used first
             self._curve_cache_size = 0  # bytes of data and keys held
             self.twist_offset = float(self.curve.end_twist)
-            jumps = self.curve.curvature_jumps
-            if jumps.size:
-                warnings.warn(f"the reference curve's curvature jumps at {jumps.size} point(s) (S = "
-                              f"{', '.join(f'{v:.6g}' for v in jumps[:4])}{', ...' if jumps.size > 4 else ''}): "
-                              f"there Delta'' of the exact solution jumps by about minus the jump of the curvature "
-                              f"(and Delta', phi' jump wherever Delta != 0), which the C^2 (Delta) / C^1 (phi) "
-                              f"splines cannot follow: the discrete rod carries a spurious moment of about "
-                              f"EI |jump of k| at each such point, an error that does not decrease with the mesh",
-                              RuntimeWarning, stacklevel=2)
+            # where the reference's curvature jumps the exact Delta', Delta'', phi' jump: joins (see interface)
+            self.joins = np.asarray(self.curve.curvature_jumps, float)
+            self._join_curve_cache: dict = {}
             interval = (0.0, float(self.curve.length))
             # with a turning frame Delta1, Delta2 enter through omega x Delta; phi still does not
             unused = (Jet.PHI[0],)
@@ -313,7 +313,9 @@ class EulerianRod:
                                  # the hand-derived derivatives cover the straight rod without a wall;
                                  # every other case takes the complex step of its residual
                                  jacobian=self.jacobian if self.constant_frame and wall is None else None,
-                                 affine_bc=True)
+                                 affine_bc=True,
+                                 joins=self.joins, join_continuity=(0,) * len(FIELDS) if self.joins.size else None,
+                                 interface=self.interface if self.joins.size else None)
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)
@@ -619,6 +621,45 @@ class EulerianRod:
         tau = k[2, 0] + N / (1.0 + d3[2])
         m = GJ * alpha / n * (z[Jet.PHI[1]] + tau)
         return m, alpha, n, d3
+
+    # ---- joins: the stations where the reference's curvature jumps ---------------
+    def interface(self, zl, zr, p, S):
+        """The 5 interface conditions at the joins ``S`` (one-sided jets ``zl``, ``zr``): the physical rod is
+        continuous there (no point force or moment), left minus right of :meth:`_joint_quantities`.
+
+        The frame ``K`` and the fields are continuous (C^0), so are the centreline and the force; what the
+        C^0 joins leave free is fixed by the continuity of ``d3`` (its ``K1, K2`` components), of the bending
+        curvature ``alpha (r' x r'')/|r'|^3`` (the moment over ``EI``, on ``K1, K2``) and of the twist rate
+        ``m / GJ`` (the torque). Each side reads the reference's curvature on its own side.
+        """
+        kl, kr = self._join_curvatures(S)
+        return self._joint_quantities(kl, zl, p) - self._joint_quantities(kr, zr, p)
+
+    def _join_curvatures(self, S):
+        """Curvatures ``(3, 3, len(S))`` just left and just right of the joins ``S`` (cached by grid)."""
+        S = np.asarray(S, float)
+        key = S.tobytes()
+        hit = self._join_curve_cache.get(key)
+        if hit is None:
+            u, inv = np.unique(S, return_inverse=True)
+            hit = tuple(np.ascontiguousarray(self.curve.one_sided_jet(u, side).k[:, :, inv]) for side in (-1, 1))
+            if len(self._join_curve_cache) > 8:  # a few grids: the joins, and their complex-step copies
+                self._join_curve_cache.clear()
+            self._join_curve_cache[key] = hit
+        return hit
+
+    @staticmethod
+    def _joint_quantities(k, z, p):
+        """``(d3.K1, d3.K2, u.K1, u.K2, m/GJ)`` from jets ``z`` with the curvatures ``k``: ``u = alpha (r' x r'')/n^3``
+        (``= d3 x d3_s``), ``m/GJ = alpha/n (phi' + tau_q)`` as in :meth:`_residual_curved`."""
+        phi_L, T, w, EI, GJ, EA = p
+        r1, r2, r3 = frame_jets(k, z[list(Jet.D1)], z[list(Jet.D2)])
+        n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
+        alpha = 1.0 + _dot(z[Jet.F], d3) / EA
+        u = (alpha / n3) * _cross2(r1, r2)
+        k1, k2, k3 = k[0, 0], k[1, 0], k[2, 0]
+        tau = k3 + (k1 * d3[1] - k2 * d3[0] - (d3[0] * d3p[1] - d3[1] * d3p[0])) / (1.0 + d3[2])
+        return np.stack([d3[0], d3[1], u[0], u[1], alpha / n * (z[Jet.PHI[1]] + tau)])
 
     def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
         """Collocation on ``N`` uniform subintervals of ``[0, curve.length]`` (or on ``breakpoints``).
