@@ -228,3 +228,26 @@ def test_a_rod_in_a_three_dimensional_well_satisfies_kirchhoff():
         rL, DL = kirchhoff_end(model, disc, x, p, o["torque"], o["l0"])
         assert np.max(np.abs(rL - model.centreline(disc, x, L)[:, 0])) < tol
         assert np.max(np.abs(DL - model.directors(disc, x, L)[:, :, 0].T)) < tol
+
+
+def test_a_trace_on_a_well_with_stations_writes_a_file_rodcont_reads_back(tmp_path, capsys):
+    """The joins add 5 unknowns per station: a branch file of such a well once failed its own check
+    ("coefficients do not fit its mesh") as the trace ended, so folds, export and restarts refused it."""
+    import rodcont
+    from conftest import run
+    well = tmp_path / "kink.csv"
+    well.write_text("0, 90, 0\n0.5, 95, 0\n1, 90, 0\n")
+    out, again = tmp_path / "k.h5", tmp_path / "k2.h5"
+    code, _, err = run(["trace", "--reference", f"well:{well}", "--gamma", "1", "--phi-max", "2", "--out", str(out),
+                        "--quiet"], capsys)
+    assert code == 2 and "give --L" in err  # the span is not 1
+    L = err.split("give --L ")[1].split()[0]
+    code, _, err = run(["trace", "--reference", f"well:{well}", "--L", L, "--gamma", "1", "--phi-max", "2",
+                        "--out", str(out), "--quiet"], capsys)
+    assert code == 0, err
+    data = rodcont.load_branch(str(out))
+    assert len(data) > 3
+    code, _, err = run(["trace", "--start", f"{out}:3", "--N", "30", "--phi-max", "3", "--out", str(again),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    assert rodcont.load_branch(str(again)).point(0)["phi_L"] == pytest.approx(data.point(3)["phi_L"], abs=1e-9)

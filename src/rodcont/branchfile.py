@@ -654,6 +654,21 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
     return attrs
 
 
+def _join_unknowns(where: str, attrs: dict) -> int:
+    """Unknowns a solution has beyond ``6 N k + 11``: those of the joins at its reference curve's curvature
+    jumps (a well's stations), the same on every mesh of the curve."""
+    spec = str(attrs.get("reference", "straight"))
+    if spec == "straight":
+        return 0
+    from .curves import parse_reference
+    from .rod import UNKNOWNS_PER_JOIN
+    try:
+        curve = parse_reference(spec, float(attrs["L"]))
+    except (ValueError, TypeError, OSError) as exc:
+        raise BranchFileError(f"{where}: damaged branch file (reference {spec!r}: {exc})") from None
+    return 0 if curve.constant_frame else UNKNOWNS_PER_JOIN * int(np.size(curve.curvature_jumps))
+
+
 def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
     h5py = _h5py()
     where = f"{path}:{name}" if name else path
@@ -687,12 +702,13 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
         branch["breakpoints"] = np.tile(b0, (n, 1))
     B = np.asarray(branch["breakpoints"], float)
     k = int(attrs["k"])
+    extra = _join_unknowns(where, attrs)
     for i in range(n):
         b = B[i][np.isfinite(B[i])]
         x = X[i][np.isfinite(X[i])]
         if x.size == 0 and int(attrs.get("store_every", 1)) > 1 and b.size >= 2:
             continue  # a thinned-out point: no solution stored
-        if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11:
+        if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11 + extra:
             raise BranchFileError(f"{where}: damaged branch file (point {i}: coefficients do not fit its mesh)")
     folds, bps = {}, {"index": np.zeros(0, int)}
     for group, target in (("folds", folds), ("branch_points", bps)):

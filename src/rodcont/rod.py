@@ -58,6 +58,9 @@ from .curves import _cross, _dot
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
 FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
 ORDERS = (3, 3, 2, 1, 1, 1)
+# a join (a station where the reference's curvature jumps) leaves every field only C^0: the coefficients
+# it adds, one per interface condition (Delta1, Delta2: 2 each; phi: 1)
+UNKNOWNS_PER_JOIN = sum(m - 1 for m in ORDERS)
 
 
 _JET_START = {f: int(sum(m + 1 for m in ORDERS[:i])) for i, f in enumerate(FIELDS)}
