@@ -846,7 +846,7 @@ def test_solve_says_when_its_uniform_mesh_leaves_the_answer_inaccurate(capsys):
 
 def test_a_trace_stopped_by_a_singular_point_says_so_and_a_regular_stop_does_not():
     """The Gamma = 1 rod twisted in a pipe (c = 0.01, eps = 1e-5) stops at Phi = 20.8626, its corrector failing
-    at every step size: there the bordered Jacobian of the adapted mesh (N = 241) is singular to rounding
+    at every step size: there the Jacobian of the adapted mesh (N = 241) is singular to rounding
     (scaled smallest singular value 5e-16; 5.9e-8 to 2.8e-12 at regular points for N = 54 to 1500). The stop
     says so instead of leaving a user to try smaller steps. The estimate itself is checked against a dense SVD."""
     import scipy.sparse as sp

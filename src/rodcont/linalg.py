@@ -286,23 +286,26 @@ def scaled_smallest_singular_value(A, iterations: int = 25) -> float:
     """The smallest singular value of ``A`` with its rows, then its columns, scaled to unit max-norm.
 
     Scaling is what a solver can undo; what is left is the matrix's own conditioning (its largest singular
-    value is then between 1 and the square root of its size). Inverse iteration on ``B^T B`` with one LU
-    of the scaled ``B``; 0 where ``B`` is exactly singular. Below about 1e-14 a solve with ``A`` is noise.
+    value is then between 1 and the square root of its size). Inverse iteration on ``B^T B``, ``B = R A C``,
+    with one LU of ``A`` itself (``B^-1 = C^-1 A^-1 R^-1``): factorising the scaled matrix changes the
+    pivots and, on a collocation matrix, filled 1.8 GB at N = 600. 0 where ``A`` is exactly singular.
+    Below about 1e-14 a solve with ``A`` is noise.
     """
-    B = sp.csr_matrix(A, dtype=float)
-    rows = abs(B).max(axis=1).toarray().ravel()
-    B = sp.diags(1.0 / np.where(rows > 0, rows, 1.0)) @ B
-    cols = abs(B).max(axis=0).toarray().ravel()
-    B = (B @ sp.diags(1.0 / np.where(cols > 0, cols, 1.0))).tocsc()
+    A = sp.csc_matrix(A, dtype=float)
+    rows = abs(A).max(axis=1).toarray().ravel()
+    r = 1.0 / np.where(rows > 0, rows, 1.0)
+    cols = abs(sp.diags(r) @ A).max(axis=0).toarray().ravel()
+    c = 1.0 / np.where(cols > 0, cols, 1.0)
     try:
-        lu = LU(B)
+        lu = LU(A)
     except SingularMatrix:
         return 0.0
-    v = np.random.default_rng(0).standard_normal(B.shape[0])
+    v = np.random.default_rng(0).standard_normal(A.shape[0])
     v /= np.linalg.norm(v)
     growth = 0.0
     for _ in range(iterations):
-        v = lu.solve(lu.solve(v), trans=True)  # (B^T B)^-1 v
+        u = lu.solve(v / r) / c                  # B^-1 v
+        v = lu.solve(u / c, trans=True) / r      # B^-T B^-1 v
         growth = float(np.linalg.norm(v))
         if not (math.isfinite(growth) and growth > 0):
             return 0.0
