@@ -43,6 +43,9 @@ Measured (c = 0.005, eps = 1e-5, straight pipe, ``--ds-max 10``; F_DP multiples 
   one zone to 1.3076, end pieces (0.53 turn) off at 1.3062, 10 zones of at most 0.92 turn at 1.2987, still
   winding 9.18 turns and stable at 1.28210, where the trace stopped (a MemoryError in the error estimate of
   a new segment, the address space limited to 8 GB); 0.005 F_DP beyond, the snake (reach 0.196 pi, stable).
+* L = 8 from 2 F_DP (guess 12 turns): a stable helix of 10.31 turns in two zones (S = 0.255 .. 7.488 and a
+  short one, 7.664 .. 7.744: not symmetric), but its trace crawls (1.3e-4 F_DP a stored point, N = 591: 0.017
+  F_DP in 150 s, with ``--ds-max`` 2 or 10); not followed to the end.
 * L = 4 on the bent axis of ``chen_cheatham.py`` (``--H 0.001``, from 1.45 F_DP, 89 s; unstable modes not
   counted there): a helix of 4.17 turns; one zone to 1.3091, the piece at one end off at 1.3076, the trace
   piling up points at 1.28230 (still winding 4.18 turns: the end, a fold here) and stopping there with the
