@@ -321,6 +321,12 @@ def test_a_trace_in_t_starts_at_a_fold_in_phi_where_its_jacobian_is_singular(tmp
         assert float(p0["phi_L"]) == pytest.approx(13.0999938, abs=1e-6)
         sides.append(np.sign(float(p1["stretch"]) - float(p0["stretch"])))
     assert sides[0] == -sides[1]
+    # on a finer mesh the fold moves (by 1e-9): the start corrects the point near it along the null vector
+    t = tmp_path / "fine.h5"
+    code, _, err = run(["trace", "--start", f"{a}:F1", "--param", "T", "--range", "-40", "30", "--N", "30",
+                        "--out", str(t), "--quiet"], capsys)
+    assert code == 0, err
+    assert float(load_branch(str(t)).point(0)["T"]) == pytest.approx(10.0, abs=1e-6)
 
 
 def test_a_tension_that_stretches_the_rod_by_half_its_length_is_warned_as_a_forgotten_ea(capsys):
@@ -332,3 +338,20 @@ def test_a_tension_that_stretches_the_rod_by_half_its_length_is_warned_as_a_forg
     assert code == 0 and "warning" not in err
     code, _, err = run(["solve", "--gamma", "5", "--phi", "0"], capsys)  # T/EA = 0.2: a rubber rod, not warned
     assert code == 0 and "warning" not in err
+
+
+def test_a_restart_in_another_parameter_starts_at_the_stored_point_of_a_trace_in_a_parameter(tmp_path, capsys):
+    """A point of a trace in w has its own w: a trace in T from it starts there, with that w (it once took
+    the file's starting w = 10 and began at another point of the branch, without a word)."""
+    g, w, t = tmp_path / "g.h5", tmp_path / "w.h5", tmp_path / "t.h5"
+    assert run(["trace", "--gamma", "1", "--phi-max", "6", "--out", str(g), "--quiet"], capsys)[0] == 0
+    assert run(["trace", "--start", f"{g}:10", "--param", "w", "--range", "2", "30", "--out", str(w), "--quiet"],
+               capsys)[0] == 0
+    code, _, err = run(["trace", "--start", f"{w}:-1", "--param", "T", "--range", "0", "100", "--out", str(t),
+                        "--quiet"], capsys)
+    assert code == 0, err
+    a, b = rodcont.load_branch(str(w)), rodcont.load_branch(str(t))
+    last, first = a.point(len(a) - 1), b.point(0)
+    assert float(last["w"]) == pytest.approx(30.0) and b.rod.w == pytest.approx(30.0)
+    assert float(first["stretch"]) == pytest.approx(float(last["stretch"]), abs=1e-9)
+    assert float(first["phi_L"]) == pytest.approx(float(last["phi_L"]), abs=1e-12)

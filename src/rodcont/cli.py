@@ -687,6 +687,10 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         if conduit is not None:
             raise UserError("a restart keeps the start file's conduit: drop --conduit")
         rod, T = data.rod, data.tension
+        if data.param != "phi_L":
+            # a branch traced in a rod parameter or the tension: the point's own values, not the file's
+            # starting ones (a restart in T from a point of a trace in w started elsewhere on the branch)
+            rod, T = _rod_at_point(data, pt), _tension_at_point(data, pt)
         extra["curve"] = data.curve
         extra["wall"] = data.wall
         k = int(data.attrs["k"])
@@ -696,8 +700,6 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         if param == "phi_L" and data.param != "phi_L":
             extra["param"] = "phi_L"
             value = float(pt["phi_L"])
-            rod = _rod_at_point(data, pt)
-            T = _tension_at_point(data, pt)
         if param != "phi_L":
             value = _param_value(param, rod, T)
             extra["phi_L"] = float(pt["phi_L"])
@@ -781,8 +783,13 @@ def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet)
     data = _load(out)
     _summary(data, elapsed)
     if interrupted:
+        # a branch in a parameter goes on in that parameter over its range (the default restart is in Phi)
+        more = ""
+        if data.param != "phi_L" and "p_range" in kw:
+            lo, hi = kw["p_range"]
+            more = f" --param {data.param} --range {lo:g} {hi:g}"
         click.echo(f"interrupted: {out} holds the {len(data)} completed point(s); "
-                   f"restart with --start {out}:-1", err=True)
+                   f"restart with --start {out}:-1{more}", err=True)
         sys.exit(intr.exit_code)
 
 

@@ -689,9 +689,9 @@ class Tracker:
         """A null vector ``(tx, tp)`` of ``[J, F_p]`` at ``(x, p)``, with ``tp`` along ``direction``
         (at a fold in p, where ``tp`` is rounding, either side); None where ``[J, F_p]`` is not of full
         rank (a branch point). The border is a fixed random row: regular wherever the rank is full."""
+        # (x need not solve F = 0: a stored fold moved to a finer mesh is near its fold, not on it; the
+        # start along this direction corrects it on the hyperplane through x, or fails and says so)
         F, J, Fp = self._linearise(x, p)
-        if max_norm(F) > math.sqrt(self.settings.newton_tol) * (1 + max_norm(x)):
-            return None  # not a solution: nothing to start along
         row = np.random.default_rng(20261123).standard_normal(self.n + 1)
         lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
         e = np.zeros(self.n + 1)
