@@ -251,3 +251,22 @@ def test_a_trace_on_a_well_with_stations_writes_a_file_rodcont_reads_back(tmp_pa
                         "--quiet"], capsys)
     assert code == 0, err
     assert rodcont.load_branch(str(again)).point(0)["phi_L"] == pytest.approx(data.point(3)["phi_L"], abs=1e-9)
+
+
+def test_stations_closer_than_a_subinterval_still_solve(tmp_path, capsys):
+    """Stations 0.005 apart (a straight well: the same answer as the straight reference) and a clearance
+    step over 0.002: the starting guess's least-squares fit once had too few points in the short
+    subinterval, a singular normal matrix and 'residual is not finite' (found by the adversarial pass)."""
+    from conftest import run
+    well = tmp_path / "close.csv"
+    well.write_text("0, 90, 0\n0.005, 90, 0\n1, 90, 0\n")
+
+    def stretch(args):
+        code, out, err = run(["solve", "--gamma", "1"] + args, capsys)
+        assert code == 0 and "Warning" not in err, err
+        return float(dict(line.split(" ", 1) for line in out.splitlines() if line and line[0] != "#")["stretch"])
+
+    assert stretch(["--phi", "3", "--reference", f"well:{well}"]) == pytest.approx(stretch(["--phi", "3"]), abs=1e-12)
+    step = tmp_path / "step.toml"
+    step.write_text("[conduit]\nclearance = [[0, 0.01], [0.5, 0.01], [0.502, 0.012], [1, 0.012]]\neps = 1e-5\n")
+    assert 0 < stretch(["--phi", "0", "--conduit", str(step)]) < 1e-3

@@ -151,9 +151,12 @@ class SplineSpace:
         return sp.csr_matrix((vals[nu].ravel(), (rows, cols.ravel())), shape=(x.size, self.dim)).tocsc()
 
     def interpolant_coefficients(self, f) -> np.ndarray:
-        """Coefficients of the least-squares fit of ``f`` on 3 points per basis function (sparse normal equations)."""
+        """Coefficients of the least-squares fit of ``f`` (sparse normal equations) on 3 points per basis
+        function spread evenly, and ``order`` more inside every subinterval: a short subinterval (stations
+        close together) would otherwise hold too few points and make the normal equations singular."""
         b = self.breakpoints
-        x = np.union1d(np.linspace(b[0], b[-1], 3 * self.dim), b)
+        inner = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, self.order + 2)[None, 1:-1]).ravel()
+        x = np.union1d(np.union1d(np.linspace(b[0], b[-1], 3 * self.dim), b), inner)
         A = self.matrix(x)
         y = np.broadcast_to(np.asarray(f(x), dtype=float), x.shape)
         return spla.spsolve((A.T @ A).tocsc(), A.T @ y)
