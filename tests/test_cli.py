@@ -315,12 +315,19 @@ def test_a_trace_in_t_starts_at_a_fold_in_phi_where_its_jacobian_is_singular(tmp
         code, _, err = run(["trace", "--start", f"{a}:F1", "--param", "T", "--range", "-40", "30", "--direction", way,
                             "--out", str(t), "--quiet"], capsys)
         assert code == 0, err
+        assert "is a fold in T too" in err  # the user is told why --direction picks a side, not a way
         d = load_branch(str(t))
+        assert not any(int(i) <= 1 for i in d.folds.get("index", []))  # the start is not reported as a fold
         p0, p1 = d.point(0), d.point(1)
         assert float(p0["T"]) == pytest.approx(10.0, abs=1e-9)
         assert float(p0["phi_L"]) == pytest.approx(13.0999938, abs=1e-6)
         sides.append(np.sign(float(p1["stretch"]) - float(p0["stretch"])))
     assert sides[0] == -sides[1]
+    # in w the start once reported a fold 2e-12 from itself, "stable on both sides"
+    code, _, err = run(["trace", "--start", f"{a}:F1", "--param", "w", "--range", "5", "20", "--out",
+                        str(tmp_path / "w.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    assert not len(load_branch(str(tmp_path / "w.h5")).folds.get("index", []))
     # on a finer mesh the fold moves (by 1e-9): the start corrects the point near it along the null vector
     t = tmp_path / "fine.h5"
     code, _, err = run(["trace", "--start", f"{a}:F1", "--param", "T", "--range", "-40", "30", "--N", "30",

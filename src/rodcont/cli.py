@@ -703,6 +703,10 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         if param != "phi_L":
             value = _param_value(param, rod, T)
             extra["phi_L"] = float(pt["phi_L"])
+        if pt["kind"] == "fold" and param != data.param:
+            click.echo(f"rodcont: note: point {label} is a fold of the stored branch, where the Jacobian is singular: "
+                       f"it is a fold in {param} too, which moves the same way on both sides of it; --direction up "
+                       f"and down follow the two sides", err=True)
         direction0 = pt["direction"] if param == data.param else None
         if direction0 is not None and direction == "down":
             direction0 = (-np.asarray(direction0[0]), -direction0[1])

@@ -280,7 +280,7 @@ class FoldDetector(Detector):
 
     def check(self, tracker, base, new, ds):
         s = tracker.settings
-        on_fold_start = base.kind == Kind.START and abs(base.tp) < 1e3 * s.fold_tol  # restarted at a fold
+        on_fold_start = base.kind == Kind.START and (abs(base.tp) < 1e3 * s.fold_tol or tracker.start_on_fold)
         if base.tp * new.tp < 0 and not on_fold_start:
             f = tracker.locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, Kind.FOLD)
             if f is not None:
@@ -396,6 +396,7 @@ class Tracker:
         self.monitor = monitor
         self.events = list(events)
         self.stop: StopReason | None = None
+        self.start_on_fold = False  # the start is a fold in p (found by start(); no fold is reported there)
         self.n = np.asarray(x0).size
         # The arclength weights: theta / n on the unknowns, 1 - theta on the parameter, each divided
         # by the square of the problem's own scale of it (``arclength_scale() -> (sx, sp)``, optional),
@@ -680,7 +681,10 @@ class Tracker:
                 if not ok:
                     raise StopContinuation(f"no convergence at the starting point ({message})")
                 raise StopContinuation("the starting point is singular (no unique tangent): use branch switching")
-            return self.start()
+            pt = self.start()
+            # a fold in p: p moves the same way on both sides, so the requested direction cannot choose
+            self.start_on_fold = abs(pt.tp) < 1e-6
+            return pt
         pt.arclength = 0.0
         self.current = pt
         return pt

@@ -23,6 +23,7 @@ import dataclasses
 import json
 import math
 import time
+import warnings
 from dataclasses import asdict, dataclass, fields
 from typing import Callable, Sequence
 
@@ -423,6 +424,11 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 accuracy.reset()
                 continue
             steps += tracker.steps
+            if tracker.start_on_fold and last_recorded is None:
+                warnings.warn(f"the start is a fold in {sysm.param} (d{sysm.param}/ds = 0 there): {sysm.param} moves "
+                              f"the same way on both sides, so the direction asked for cannot choose; the trace "
+                              f"follows one side (its other side: the same command with the other --direction)",
+                              RuntimeWarning, stacklevel=2)
             err = accuracy(sysm, first)
             if err > accuracy.trigger and o.adapt and start_attempts < 6 and sysm.disc.N < o.N_max:
                 start_attempts += 1
