@@ -362,3 +362,16 @@ def test_a_restart_in_another_parameter_starts_at_the_stored_point_of_a_trace_in
     assert float(last["w"]) == pytest.approx(30.0) and b.rod.w == pytest.approx(30.0)
     assert float(first["stretch"]) == pytest.approx(float(last["stretch"]), abs=1e-9)
     assert float(first["phi_L"]) == pytest.approx(float(last["phi_L"]), abs=1e-12)
+
+
+def test_a_restart_accepts_options_equal_to_the_stored_point_and_refuses_others(tmp_path, capsys):
+    """A script that always passes the rod's options restarts without a 'differs' (it once refused
+    --gamma 1 on a Gamma = 1 file); a value that does differ is still refused."""
+    a = tmp_path / "a.h5"
+    assert run(["trace", "--gamma", "1", "--phi-max", "2", "--out", str(a), "--quiet"], capsys)[0] == 0
+    code, _, err = run(["trace", "--start", f"{a}:3", "--gamma", "1", "--w", "10", "--EA", "255", "--phi-max", "3",
+                        "--out", str(tmp_path / "b.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    code, _, err = run(["trace", "--start", f"{a}:3", "--gamma", "1", "--EI", "2", "--out", str(tmp_path / "c.h5")],
+                       capsys)
+    assert code == 2 and err.startswith("rodcont: error: --EI differs")

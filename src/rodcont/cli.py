@@ -668,6 +668,23 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
             raise UserError(f"{data.path} is a fold curve in {data.param}, not a branch: it cannot start a trace")
         changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L", "weight_direction") + (
             ["T"] if click.get_current_context().meta.get("rodcont.T") is not None else [])
+        # a value that equals the stored point's own is no change (a script that always passes --gamma)
+        prod, ten = (_rod_at_point(data, pt), _tension_at_point(data, pt)) if data.param != "phi_L" \
+            else (data.rod, data.tension)
+        ctx = click.get_current_context()
+        given = dict(gamma=gamma, w=w, EI=EI, GJ=GJ, EA=EA, L=L, T=ctx.meta.get("rodcont.T"),
+                     weight_direction=ctx.meta.get("rodcont.weight_direction"))
+        stored = dict(w=prod.w, EI=prod.EI, GJ=prod.GJ, EA=prod.EA, L=prod.L, T=ten,
+                      gamma=ten / (prod.w * prod.L) if prod.w > 0 else None,
+                      weight_direction=tuple(prod.weight_direction))
+
+        def same(name):
+            a, b = given[name], stored[name]
+            if a is None or b is None:
+                return False
+            return bool(np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-12, atol=0.0))
+
+        changed = [n for n in changed if not same(n)]
         if changed:
             names = ", ".join("--" + n.replace("_", "-") for n in changed)
             traceable = [n for n in ("gamma", "T", "w", "EI", "GJ", "EA") if n in changed]
