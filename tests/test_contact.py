@@ -884,3 +884,20 @@ def test_solve_estimates_the_error_of_its_side_force_and_warns_when_it_is_large(
         actual = abs(f - exact) / exact
         assert actual / 5 < estimate < 5 * actual
         assert ("side force's estimated error" in err) == warned
+
+
+def test_solve_in_a_conduit_converges_on_a_fine_mesh():
+    """On a fine mesh the stiff contact law leaves Newton's steps above tol (1 + |x|) from rounding noise alone:
+    solve in the helical conduit at N = 500 failed ('no convergence in 30 iterations') where N = 400 solved.
+    Newton now stops where every residual row is at its rounding noise; the answer agrees with N = 400."""
+    from rodcont.curves import parse_reference
+    from rodcont.contact import Wall as W
+    import tomllib
+    spec = tomllib.loads(open(os.path.join(EXAMPLES, "conduit_helix.toml")).read())["conduit"]
+    rod = RodParameters()
+    curve = parse_reference(spec["reference"], rod.L)
+    wall = W(spec["clearance"], eps=spec.get("eps", 1e-5))
+    a = solve_equilibrium(None, 0.0, rod, T=10.0, wall=wall, curve=curve, N=400)
+    b = solve_equilibrium(None, 0.0, rod, T=10.0, wall=wall, curve=curve, N=500)
+    assert b.converged
+    assert b.outputs["stretch"] == pytest.approx(a.outputs["stretch"], rel=1e-7)

@@ -61,7 +61,7 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from .linalg import LU, SingularMatrix, bordered, max_norm, newton_solve
+from .linalg import LU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
 
 
 # --------------------------------------------------------------------------
@@ -106,15 +106,12 @@ class StopReason:
 
 
 def _at_rounding(F, J, Fp, x, p, factor: float = 1e3) -> bool:
-    """Whether every residual row is within ``factor`` times its rounding noise: machine epsilon times the
-    size of its terms, ``|J| |x| + |F_p| |p|`` (plus the mean of those, for rows whose terms cancel).
+    """:func:`rodcont.linalg.at_rounding` with the parameter's terms ``|F_p| |p|``.
 
     A corrector whose residual stalls while its steps stop shrinking has either reached rounding or
     stagnated on a nearly singular matrix: a trace in a pipe (L = 8, eps = 1e-5) stored a point whose
     residual was 2e9 times its noise (0.11 in rows whose terms are 5e5), its neighbours 1.3 times."""
-    mag = abs(J) @ np.abs(x) + np.abs(np.asarray(Fp, float)) * abs(p)
-    noise = np.finfo(float).eps * (mag + float(np.mean(mag)))
-    return bool(np.all(np.abs(F) <= factor * noise))
+    return at_rounding(F, J, x, np.abs(np.asarray(Fp, float)) * abs(p), factor)
 
 
 def _is_number(v) -> bool:
