@@ -291,7 +291,8 @@ def test_the_fold_table_of_a_branch_in_t_gives_the_tension_of_each_fold(tmp_path
     assert run(["trace", "--gamma", "1", "--phi-max", "14", "--out", str(a), "--quiet"], capsys)[0] == 0
     from rodcont.branchfile import load_branch
     before = int(load_branch(str(a)).folds["index"][0]) - 1  # the stored point just before the Phi-fold
-    code, _, err = run(["trace", "--start", f"{a}:{before}", "--param", "T", "--range", "-40", "30", "--direction", "down",
+    code, _, err = run(["trace", "--start", f"{a}:{before}", "--param", "T", "--range", "-40", "30",
+                        "--direction", "down",
                         "--out", str(t), "--quiet"], capsys)
     assert code == 0, err
     code, out, _ = run(["folds", str(t)], capsys)
