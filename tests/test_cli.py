@@ -346,6 +346,11 @@ def test_a_tension_that_stretches_the_rod_by_half_its_length_is_warned_as_a_forg
     assert code == 0 and "warning" not in err
     code, _, err = run(["solve", "--gamma", "5", "--phi", "0"], capsys)  # T/EA = 0.2: a rubber rod, not warned
     assert code == 0 and "warning" not in err
+    # a refused command gives its one-line error alone; every command that builds a rod warns, sweep too
+    code, _, err = run(["solve", "--T", "200", "--phi", "1", "--conduit", "/nonexistent.toml"], capsys)
+    assert code == 2 and "warning" not in err and err.count("\n") == 1
+    code, _, err = run(["sweep", "--gamma", "20", "--phi-max", "0.2", "--out", "/nonexistent-dir/x"], capsys)
+    assert code == 2 and "warning" not in err
 
 
 def test_a_restart_in_another_parameter_starts_at_the_stored_point_of_a_trace_in_a_parameter(tmp_path, capsys):

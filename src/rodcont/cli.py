@@ -411,13 +411,19 @@ def _tension(gamma, rod):
         T = rod.tension(gamma)
         if not math.isfinite(T):
             raise UserError(f"--gamma {gamma:g} gives a tension that is not finite")
+    return gamma, T
+
+
+def _stretch_warning(rod, T) -> None:
+    """Warn of a tension beyond half of EA: the model is right for any stretch, a real rod is not, and this
+    is nearly always a forgotten --EA. Called once the input has passed every check (a refused command
+    gives its one-line error alone)."""
     from .drivers.solve import euler_tension
-    if abs(T) > 0.5 * rod.EA and T > euler_tension(rod):  # (below the Euler load it is refused anyway)
-        # the model is right for any stretch, a real rod is not: this is nearly always a forgotten --EA
+    # (below the Euler load, or not finite, the tension is refused anyway)
+    if math.isfinite(T) and abs(T) > 0.5 * rod.EA and T > euler_tension(rod):
         click.echo(f"rodcont: warning: T = {T:g} stretches the rod by T/EA = {T / rod.EA:.3g} "
                    f"(EA = {rod.EA:g}{', the paper default' if rod.EA == 255.0 else ''}): give the rod's "
                    f"--EA if it is not meant", err=True)
-    return gamma, T
 
 
 def _meta():
@@ -581,6 +587,7 @@ def solve(gamma, phi, load_step, conduit, N, k, w, EI, GJ, EA, L):
     gamma, T = _tension(gamma, rod)
     try:
         curve, wall = _conduit(conduit, rod)
+        _stretch_warning(rod, T)
         eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T, curve=curve, wall=wall)
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
@@ -759,6 +766,7 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         elif param != "phi_L":
             raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
         _check_out(out, [conduit] if conduit is not None else [], overwrite)
+        _stretch_warning(rod, T)
     extra["meta"] = _meta()
     _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 
@@ -873,6 +881,7 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
         crit = critical_twists(rod, T, phi_max=phi_max, phi_min=phi_min, k=k)
     except (ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
+    _stretch_warning(rod, T)
     alpha = 1 + T / EA
     g = f" (Gamma = {gamma:g})" if gamma is not None else ""
     click.echo(f"# straight weightless rod, T = {T:.10g}{g}, alpha = 1 + T/EA = {alpha:.10g}")
@@ -910,6 +919,7 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     _curve(rod, "diagram")
     gamma, T = _tension(gamma, rod)
     _check_out(out, [], overwrite)
+    _stretch_warning(rod, T)
     with _Interrupts() as intr:
         progress = _Progress(True, intr)
         t0 = time.perf_counter()
@@ -1196,6 +1206,8 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
         raise UserError(f"cannot create {out_dir}: directory {parent} does not exist")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise UserError(f"--out {out_dir} exists and is not a directory")
+    for g in gammas:
+        _stretch_warning(rod, rod.tension(g))
     from .drivers.trace import TraceOptions
     try:
         TraceOptions(**{key: v for key, v in kw.items() if key not in ("store_every", "curve")})
