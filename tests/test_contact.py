@@ -901,3 +901,13 @@ def test_solve_in_a_conduit_converges_on_a_fine_mesh():
     b = solve_equilibrium(None, 0.0, rod, T=10.0, wall=wall, curve=curve, N=500)
     assert b.converged
     assert b.outputs["stretch"] == pytest.approx(a.outputs["stretch"], rel=1e-7)
+
+
+def test_a_trace_in_the_well_that_cannot_start_on_a_coarse_mesh_says_to_raise_n(tmp_path, capsys):
+    """The 1 km drill pipe in the example well at the default N = 15 (61 with its stations: elements of 16 m
+    against a clearance of 5 cm) does not start; the error says why and what to do (N = 200 starts)."""
+    conduit = os.path.join(EXAMPLES, "conduit_well.toml")
+    code, _, err = run(["trace", "--T", "1e5", "--conduit", conduit, "--L", "973.077121578337", "--EI", "1.25e6",
+                        "--GJ", "9.6e5", "--EA", "7.15e8", "--w", "235", "--phi-max", "1", "--out", str(tmp_path / "w.h5"),
+                        "--quiet"], capsys)
+    assert code == 2 and "raise --N" in err and err.count("\n") == 1

@@ -409,7 +409,12 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 first = tracker.start()
             except StopContinuation as exc:
                 if last_recorded is None:
-                    raise TraceError(str(exc)) from None
+                    # a contact on a mesh too coarse for it is the usual cause in a conduit (the 1 km well
+                    # at the default N = 15, 61 with its stations: elements of 16 m in a 5 cm clearance;
+                    # N = 200 starts)
+                    advice = f" (N = {sysm.disc.N} may be too coarse for the contact: raise --N)" \
+                        if sysm.wall is not None else ""
+                    raise TraceError(str(exc) + advice) from None
                 # the adapted mesh did not converge: from the last stored point, halve every
                 # subinterval of its mesh instead (a nested space: the point carries over exactly)
                 failed_remeshes += 1
