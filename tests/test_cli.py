@@ -353,6 +353,17 @@ def test_a_tension_that_stretches_the_rod_by_half_its_length_is_warned_as_a_forg
     assert code == 2 and "warning" not in err
 
 
+def test_a_trace_in_t_whose_range_passes_half_of_ea_is_warned(tmp_path, capsys):
+    a = tmp_path / "a.h5"
+    assert run(["trace", "--gamma", "1", "--phi-max", "1", "--out", str(a), "--quiet"], capsys)[0] == 0
+    code, _, err = run(["trace", "--start", f"{a}:3", "--param", "T", "--range", "0", "1000", "--out",
+                        str(tmp_path / "t.h5"), "--quiet"], capsys)
+    assert code == 0 and "T = 1000 stretches the rod by T/EA = 3.92" in err
+    code, _, err = run(["trace", "--start", f"{a}:3", "--param", "T", "--range", "0", "100", "--out",
+                        str(tmp_path / "u.h5"), "--quiet"], capsys)
+    assert code == 0 and "warning" not in err
+
+
 def test_a_restart_in_another_parameter_starts_at_the_stored_point_of_a_trace_in_a_parameter(tmp_path, capsys):
     """A point of a trace in w has its own w: a trace in T from it starts there, with that w (it once took
     the file's starting w = 10 and began at another point of the branch, without a word)."""

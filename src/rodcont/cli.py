@@ -768,6 +768,10 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         _check_out(out, [conduit] if conduit is not None else [], overwrite)
         _stretch_warning(rod, T)
     extra["meta"] = _meta()
+    if param in ("T", "gamma") and prange is not None:
+        # a trace in the tension reaches the ends of its range: warn for the farther one
+        ends = [v if param == "T" else v * rod.w * rod.L for v in prange]
+        _stretch_warning(rod, max(ends, key=abs))
     _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 
 
