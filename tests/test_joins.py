@@ -18,7 +18,7 @@ from rodcont.collocation import BVProblem, Collocation
 from rodcont.curves import MinimumCurvatureWell
 from rodcont.rod import EulerianRod, RodParameters
 
-from test_curves import FOLD, PAPER, centreline_distance, first_fold
+from test_curves import PAPER, assert_fold_as_on_the_straight_reference, centreline_distance
 
 
 # --------------------------------------------------------------------------
@@ -184,18 +184,7 @@ def test_the_fold_on_a_well_reference_is_the_problem_fold():
     """The first fold of the Gamma = 1 branch traced on the S-well (N = 15, k = 5): PROBLEM.md's fold, and the
     straight reference's on the same mesh size: measured 1.3e-9 (Phi), 1.9e-9 (stretch, l0), 2.0e-8 (torque),
     2.1e-9 (centreline)."""
-    straight = EulerianRod(PAPER)
-    well = EulerianRod(PAPER, s_well())
-    ps, ss = first_fold(straight)
-    pw, sw = first_fold(well)
-    for key, ref in FOLD.items():
-        got = pw.p if key == "phi_L" else pw.data[key]
-        assert got == pytest.approx(ref, abs=1e-7 if key != "torque" else 2e-7), key
-    assert abs(pw.p - ps.p) < 1e-8
-    for key in ("stretch", "l0"):
-        assert abs(pw.data[key] - ps.data[key]) < 1e-8, key
-    assert abs(pw.data["torque"] - ps.data["torque"]) < 1e-7
-    assert centreline_distance(straight, ss.disc, ps.x, well, sw.disc, pw.x) < 1e-8
+    assert_fold_as_on_the_straight_reference(EulerianRod(PAPER, s_well()))
 
 
 def test_an_adaptive_trace_on_a_well_keeps_its_joins():
