@@ -392,3 +392,22 @@ def test_a_restart_accepts_options_equal_to_the_stored_point_and_refuses_others(
     code, _, err = run(["trace", "--start", f"{a}:3", "--gamma", "1", "--EI", "2", "--out", str(tmp_path / "c.h5")],
                        capsys)
     assert code == 2 and err.startswith("rodcont: error: --EI differs")
+
+
+def test_a_fold_detected_but_not_located_is_said_in_the_summary_and_the_file(tmp_path, capsys, monkeypatch):
+    """A fold whose location fails (no point of the bracket converges) is not dropped silently: the summary
+    warns with its bracket and the branch file keeps it in the ``unlocated`` attribute."""
+    import json
+    from rodcont.continuation import Tracker
+    monkeypatch.setattr(Tracker, "locate", lambda self, *a, **k: None)
+    out = tmp_path / "b.h5"
+    code, stdout, err = run(["trace", "--gamma", "1", "--phi-max", "14", "--out", str(out), "--quiet"], capsys)
+    assert code == 0, err
+    assert "folds        0" in stdout
+    line, = [s for s in stdout.splitlines() if s.startswith("warning      a fold between phi_L = ")]
+    a, b = (float(v) for v in line.split("phi_L = ")[1].split(" was")[0].split(" and "))
+    # the step that turned: both ends just below the fold's Phi (13.0999938230 where it is located)
+    assert 13.09 < min(a, b) and max(a, b) < 13.0999938231 and a != b
+    with h5py.File(out, "r") as f:
+        (kind, fa, fb), = json.loads(f.attrs["unlocated"])
+    assert kind == "fold" and fa == pytest.approx(a, rel=1e-9) and fb == pytest.approx(b, rel=1e-9)

@@ -173,3 +173,46 @@ def test_a_residual_at_rounding_is_told_from_a_stagnated_one():
     x = r.x * (1 + 1e-9)
     F, J, (Fp,) = b.disc.linearise(x, [2.0], [0])
     assert not _at_rounding(F, J, Fp, x, 2.0)
+
+
+def test_a_detected_branch_point_whose_location_fails_is_reported_not_dropped(monkeypatch):
+    """The determinant changes sign in a step, but no point of the bracket converges (seen on a helix in a
+    pipe, where the bordered matrix is singular to rounding near the crossing): the crossing is recorded
+    with its bracket and warned of; before, the detector returned nothing and the branch point vanished."""
+    from rodcont.continuation import Tracker
+    monkeypatch.setattr(Tracker, "locate", lambda self, *a, **k: None)
+    s = ContinuationSettings(ds=0.13, ds_max=0.2, p_min=-1.0, p_max=1.0, max_steps=100)
+    tr = Tracker(Pitchfork(), np.array([0.0, -1.0]), -1.0, s)
+    with pytest.warns(RuntimeWarning, match="branch point between p = .* was detected but could not be located"):
+        pts = list(tr)
+    assert not [q for q in pts if q.kind == "branch_point"]
+    (kind, a, b), = tr.unlocated
+    assert kind == "branch_point" and a < 0 < b  # the step across the branch point at p = 0
+
+
+def test_every_point_is_within_the_tolerance_and_its_tangent_within_near_sqrt_tol():
+    """The corrector's contract, checked point by point on Bratu's branch through its fold: each stored
+    point is within newton_tol (1 + |y|) of the solution Newton at its own lambda converges to, and its
+    tangent within 10 NEAR sqrt(newton_tol) of the unit null vector of [J, F_p] there (the tangent comes
+    from the factorisation before the last Newton step, which the corrector takes at NEAR sqrt(tol); a last
+    correction with that factorisation checks the point to tol)."""
+    from rodcont.continuation import NEAR
+    pb = Bratu(N=12)
+    s = ContinuationSettings(ds=0.1, ds_max=0.5, p_max=3.6, p_min=-0.1, max_steps=200)
+    pts, _ = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid,
+                          events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True)])
+    regular = [q for q in pts if q.kind == "regular"]
+    assert len(regular) > 10
+    worst_x = worst_t = 0.0
+    for q in regular:
+        y = np.append(q.x, q.p)
+        if abs(q.tp) > 0.05:  # Newton at fixed lambda: regular away from the fold
+            r = pb.disc.newton(q.x, [q.p], tol=1e-14)
+            assert r.converged
+            worst_x = max(worst_x, np.max(np.abs(r.x - q.x)) / (1 + np.max(np.abs(y))))
+        F, J, (Fp,) = pb.disc.linearise(q.x, [q.p], [0])
+        t = LU(bordered(J, Fp, q.tx, q.tp)).solve(np.append(np.zeros(q.x.size), 1.0))
+        t /= np.linalg.norm(t) * np.sign(t @ np.append(q.tx, q.tp))
+        worst_t = max(worst_t, np.max(np.abs(t - np.append(q.tx, q.tp) / np.linalg.norm(np.append(q.tx, q.tp)))))
+    assert worst_x <= s.newton_tol
+    assert worst_t <= 10 * NEAR * math.sqrt(s.newton_tol)

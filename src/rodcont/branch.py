@@ -48,6 +48,9 @@ class Branch:
     # (value before, value after, count before, count after): eigenvalue crossings no fold or branch point
     # accounts for (rodcont.drivers.trace.StabilityCount)
     missed_crossings: list = field(default_factory=list)
+    # (kind, value before, value after): folds and branch points detected in a step but not located
+    # (rodcont.continuation.Tracker.not_located)
+    unlocated: list = field(default_factory=list)
 
     def __post_init__(self):
         names = COLUMNS + ((self.param,) if self.param != "phi_L" else ())

@@ -837,6 +837,10 @@ def _summary(data, elapsed):
         click.echo(f"warning      unstable modes {n0} -> {n1} between {data.param} = {a:.10g} and {b:.10g}: "
                    f"more eigenvalues crossed zero than the located folds and branch points account for "
                    f"(unseen bifurcations; retrace with a smaller --ds-max)")
+    for kind, a, b in json.loads(data.attrs.get("unlocated", "[]")):
+        click.echo(f"warning      a {kind.replace('_', ' ')} between {data.param} = {a:.10g} and {b:.10g} was "
+                   f"detected but could not be located (no point between them converged); it is not in the "
+                   f"tables")
     _fold_table(data)
     bp = data.branch_points
     for j in range(len(bp.get("index", []))):

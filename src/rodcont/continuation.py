@@ -55,13 +55,14 @@ its tolerance is kept and marked ``located = False`` (bracketed):
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, fields
 from enum import Enum
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from .linalg import LU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
+from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
 
 
 # --------------------------------------------------------------------------
@@ -116,6 +117,14 @@ def _at_rounding(F, J, Fp, x, p, factor: float = 1e3) -> bool:
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+#: The corrector's chord stops, and the Newton step that gives a regular point's tangent is taken,
+#: once the correction is below NEAR sqrt(tol) (1e-6 relative for tol = 1e-10); a last correction
+#: with that factorisation then checks the point to tol. A regular point's tangent is accurate to a
+#: few NEAR sqrt(tol) (2.2e-6 on Bratu's branch, tests/test_continuation.py; located points to tol).
+#: NEAR = 1e-3 gave tangents to 1.6e-8 for about one more residual per step.
+NEAR = 0.1
 
 
 @dataclass
@@ -282,6 +291,7 @@ class FoldDetector(Detector):
             f = tracker.locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, Kind.FOLD)
             if f is not None:
                 return [Finding(f.ds, f)]
+            tracker.not_located(Kind.FOLD, base, new)
         return []
 
     @staticmethod
@@ -318,7 +328,10 @@ class BranchPointDetector(Detector):
 
         g1 = -math.exp(min(new.det_log - ref, 700.0))
         f = tracker.locate(base, ds, gdet, 1.0, g1, s.locate_tol, Kind.BRANCH_POINT)
-        return [Finding(f.ds, f)] if f is not None else []
+        if f is None:
+            tracker.not_located(Kind.BRANCH_POINT, base, new)
+            return []
+        return [Finding(f.ds, f)]
 
 
 class ValueDetector(Detector):
@@ -394,6 +407,9 @@ class Tracker:
         self.events = list(events)
         self.stop: StopReason | None = None
         self.start_on_fold = False  # the start is a fold in p (found by start(); no fold is reported there)
+        # (kind, p before, p after): a fold or branch point detected in a step whose location failed
+        # (no point of the bracket converged); the step's end is kept as a regular point
+        self.unlocated: list[tuple[str, float, float]] = []
         self.n = np.asarray(x0).size
         # The arclength weights: theta / n on the unknowns, 1 - theta on the parameter, each divided
         # by the square of the problem's own scale of it (``arclength_scale() -> (sx, sp)``, optional),
@@ -508,7 +524,8 @@ class Tracker:
         g = float((self.wx * base.tx) @ (x - base.x)) + self.wp * base.tp * (p - base.p) - ds
         return np.append(F, g)
 
-    def _correct(self, base: Point, ds: float, kind=Kind.REGULAR, max_iter: int | None = None):
+    def _correct(self, base: Point, ds: float, kind=Kind.REGULAR, max_iter: int | None = None,
+                 near: tuple[float, Point] | None = None):
         """Predictor from ``base`` with step ``ds``, then the corrector; returns ``(point, info)``
         or ``(None, why)``.
 
@@ -519,11 +536,23 @@ class Tracker:
         tangent needs anyway. ``info``: the first chord contraction and the distance
         from the predictor (weighted norm / ds), for step control and the
         branch-jump guards.
+
+        ``near = (ds0, q)``: a point ``q`` already corrected from this ``base`` at ``ds0`` (a
+        location's previous iterate). The predictor then starts from ``q`` along its tangent and
+        the chord uses ``q``'s factorisation, which is that of this very system (same border row)
+        at a nearby point: a location converges with one factorisation per iterate.
         """
         s = self.settings
         y_pred = np.append(base.x + ds * base.tx, base.p + ds * base.tp)
+        chord = base.solver
         prev = self._previous
-        if prev is not None and prev.x.size == base.x.size and base.ds != 0 and kind == Kind.REGULAR:
+        if near is not None and isinstance(near[1].solver, RowUpdatedLU):
+            ds0, q = near
+            along = self._wdot(q, base)
+            if along > 0.5:  # q's tangent crosses the hyperplanes <t_base, y - y_base> = const
+                y_pred = np.append(q.x + (ds - ds0) / along * q.tx, q.p + (ds - ds0) / along * q.tp)
+                chord = near[1].solver.lu
+        elif prev is not None and prev.x.size == base.x.size and base.ds != 0 and kind == Kind.REGULAR:
             # second-order predictor: the tangent's change per unit arclength over the last step
             kx = (base.tx - prev.tx) / base.ds
             kp = (base.tp - prev.tp) / base.ds
@@ -532,20 +561,21 @@ class Tracker:
         y = y_pred.copy()
         tol = s.newton_tol
         # The Newton step whose factorisation gives the tangent is applied to the point: after it
-        # the error is of the order of the square of that step. So the chord stops, and the step is
-        # accepted, at 1e-3 sqrt(tol) (1e-8 for tol = 1e-10), which leaves an error far below tol.
-        # Located points (folds, events) need the tangent itself to the tolerance: the tangent is
-        # taken before the last step, so there the step must be below the tolerance.
-        accept = max(tol, 1e-3 * math.sqrt(tol)) if kind == Kind.REGULAR else tol
+        # the error is of the order of the square of that step. So the chord stops, and that step is
+        # taken, at NEAR sqrt(tol) (1e-7 for tol = 1e-10); one more correction with the new
+        # factorisation then measures what is left, and the point is accepted only if that is below
+        # tol. Located points (folds, events) need the tangent itself to the tolerance: the tangent
+        # is taken before the last step, so there the step must be below the tolerance.
+        accept = max(tol, NEAR * math.sqrt(tol)) if kind == Kind.REGULAR else tol
         info = dict(contraction=0.0, distance=0.0, newton=0)
         iterations = 0
-        if base.solver is not None:
+        if chord is not None:
             sizes: list[float] = []
             for _ in range(s.chord_max_iter):
                 r = self._augmented_residual(y, base, ds)
                 if not np.all(np.isfinite(r)):
                     return None, "the residual is not finite"
-                dy = base.solver.solve(-r)
+                dy = chord.solve(-r)
                 iterations += 1
                 size = max_norm(dy)
                 if not math.isfinite(size):
@@ -597,7 +627,11 @@ class Tracker:
             dy = lu.solve(-r)
             size = max_norm(dy)
             rounding = size <= math.sqrt(tol) * (1 + max_norm(y))
-            if not math.isfinite(size) or (size > 2 * prev and not rounding):
+            # On a regular step, Newton that does not contract (theta = |dy_k| / |dy_k-1| >= 1) has left
+            # its basin: a shorter step is cheaper than the iterations it would waste finding that out.
+            # A located point may sit on a singular point, where Newton is only linear (theta near 1/2)
+            # and rounding makes theta jitter: there only a doubling step counts as divergence.
+            if not math.isfinite(size) or (size >= (prev if kind == Kind.REGULAR else 2 * prev) and not rounding):
                 self.newton_iterations += iterations
                 return None, "the corrector diverged"
             # a residual that stops falling while the steps still contract is a slow (stiff) start of
@@ -614,6 +648,16 @@ class Tracker:
                 sign, log = lu.det()
                 solver = lu.with_last_row(row, self._border(tx, tp), t)
                 y = y + dy
+                if size > tol * (1 + max_norm(y)):
+                    # what the step left: one correction with this factorisation (contraction ~ |dy|)
+                    r = self._augmented_residual(y, base, ds)
+                    dy = lu.solve(-r)
+                    iterations += 1
+                    y = y + dy
+                    if not (max_norm(dy) <= tol * (1 + max_norm(y))
+                            or _at_rounding(r[:-1], J, Fp, y[:-1] - dy[:-1], float(y[-1] - dy[-1]))):
+                        prev = size
+                        continue
                 self.newton_iterations += iterations
                 if ds != 0:
                     info["distance"] = self._wnorm(y - y_pred) / abs(ds)
@@ -735,7 +779,7 @@ class Tracker:
         s = self.settings
         a, b, fa, fb = 0.0, ds_hi, g0, g1
         side = 0
-        best = None
+        best = last = None
         for _ in range(s.locate_max_iter):
             m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
             if not (min(a, b) < m < max(a, b)):
@@ -743,12 +787,15 @@ class Tracker:
             pt = None
             for nudge in (0.0, 1e-9, -1e-9):  # exactly on a branch point the bordered matrix is singular
                 mm = m + nudge * ds_hi
-                pt, _ = self._correct(base, mm, kind=kind)
+                pt, _ = self._correct(base, mm, kind=kind, near=last)
+                if pt is None and last is not None:  # from the base itself, as the first iterate
+                    pt, _ = self._correct(base, mm, kind=kind)
                 if pt is not None:
                     m = mm
                     break
             if pt is None:
                 break
+            last = (m, pt)
             fm = g(pt)
             best = pt
             if abs(fm) <= tol:
@@ -806,6 +853,12 @@ class Tracker:
                     return found[:j] + [Finding(f.offset, None, stop)]
                 return found[:j] + [Finding(e.ds, e, stop)]
         return found
+
+    def not_located(self, kind, base: Point, new: Point) -> None:
+        """A detected special point whose location failed: recorded and warned, never dropped silently."""
+        self.unlocated.append((str(kind), float(base.p), float(new.p)))
+        warnings.warn(f"a {str(kind).replace('_', ' ')} between p = {base.p:.10g} and {new.p:.10g} was detected "
+                      f"but could not be located (no point between them converged)", RuntimeWarning, stacklevel=3)
 
     def _accept(self, pt: Point) -> None:
         """Make ``pt`` the current point; problems with an ``accept(x, p)`` hook are told."""

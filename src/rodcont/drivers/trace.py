@@ -399,6 +399,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             sysm = seg.system
             tracker = Tracker(sysm, seg.x, seg.p, settings, monitor=sysm.outputs, events=events,
                               tangent0=seg.tangent, exact_start=seg.exact)
+            tracker.unlocated = branch.unlocated
             if sysm.wall is not None:
                 tracker.detectors.append(ZoneChangeDetector(sysm))
             if step_in_use is not None:
@@ -808,6 +809,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
             try:
                 if branch.missed_crossings:
                     writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
+                if branch.unlocated:
+                    writer.f.attrs["unlocated"] = json.dumps(branch.unlocated)
                 if contact is not None and len(branch):
                     # the rows are computed as the points are recorded: here at most the last point's
                     # (when a second Ctrl-C came during its computation), so an interrupt does not wait
