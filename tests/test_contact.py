@@ -911,3 +911,16 @@ def test_a_trace_in_the_well_that_cannot_start_on_a_coarse_mesh_says_to_raise_n(
                         "--GJ", "9.6e5", "--EA", "7.15e8", "--w", "235", "--phi-max", "1", "--out", str(tmp_path / "w.h5"),
                         "--quiet"], capsys)
     assert code == 2 and "raise --N" in err and err.count("\n") == 1
+
+
+def test_a_trace_is_not_refined_from_a_branch_point_it_could_not_locate():
+    """The helix-in-a-pipe rod of the test above on N = 60: its branch point near Phi = 16.5 is not located to
+    tolerance (the bordered matrix is singular to rounding there). A new segment refined from that unlocated
+    point diverged at every step size and the trace stopped at Phi = 16.46; refined from the step's end
+    instead, it passes on to the bound."""
+    from rodcont.drivers.trace import trace
+    br = trace(rod=RodParameters(w=0.5), T=-20.0, wall=Wall(0.01, eps=1e-2, force_scale=50.0), phi_max=17.5, N=60)
+    assert br.stop_reason == "parameter bound p_max = 17.5 reached", br.stop_reason
+    phi, kind = np.array(br.column("phi_L")), list(br.column("kind"))
+    bps = [phi[i] for i in range(len(phi)) if kind[i] == "branch_point"]
+    assert len(bps) == 1 and 16.1 < bps[0] < 16.8

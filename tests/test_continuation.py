@@ -216,3 +216,31 @@ def test_every_point_is_within_the_tolerance_and_its_tangent_within_near_sqrt_to
         worst_t = max(worst_t, np.max(np.abs(t - np.append(q.tx, q.tp) / np.linalg.norm(np.append(q.tx, q.tp)))))
     assert worst_x <= s.newton_tol
     assert worst_t <= 10 * NEAR * math.sqrt(s.newton_tol)
+
+
+def test_the_heap_trimmer_trims_only_above_its_size_and_at_most_once_per_interval(monkeypatch):
+    """The trace's guard against the C heap's fragmentation (rodcont.linalg.HeapTrimmer): malloc_trim is
+    called only while the process holds more than ``above`` bytes, at most once per ``interval``; with
+    ``interval=None`` never. (What it saves is a benchmark figure: benchmarks/bench.py, section long.)"""
+    import rodcont.linalg as la
+    calls = []
+    t = la.HeapTrimmer(interval=0.0, above=0)
+    if t._trim is None:
+        pytest.skip("no malloc_trim in this C library")
+    t._trim = lambda pad: calls.append(pad)
+    t(), t()
+    assert calls == [0, 0]
+    big = la.HeapTrimmer(interval=0.0, above=2**62)
+    big._trim = t._trim
+    big()
+    assert calls == [0, 0]
+    slow = la.HeapTrimmer(interval=3600.0, above=0)
+    slow._trim = t._trim
+    slow.last -= 7200.0
+    slow(), slow()
+    assert calls == [0, 0, 0]
+    off = la.HeapTrimmer(interval=None, above=0)
+    off._trim = t._trim
+    off()
+    assert calls == [0, 0, 0]
+    assert la.resident_bytes() > 10 * 2**20  # this process, as /proc/self/statm tells it

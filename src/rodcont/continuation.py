@@ -628,9 +628,11 @@ class Tracker:
             size = max_norm(dy)
             rounding = size <= math.sqrt(tol) * (1 + max_norm(y))
             # On a regular step, Newton that does not contract (theta = |dy_k| / |dy_k-1| >= 1) has left
-            # its basin: a shorter step is cheaper than the iterations it would waste finding that out.
-            # A located point may sit on a singular point, where Newton is only linear (theta near 1/2)
-            # and rounding makes theta jitter: there only a doubling step counts as divergence.
+            # its basin: a shorter step is cheaper than the iterations it would waste finding that out,
+            # and resolves what the long one jumps (with 2x here, a trace in T missed the split of a
+            # contact zone: tests/test_contact.py). A located point may sit on a singular point, where
+            # Newton is only linear (theta near 1/2) and rounding makes theta jitter: there only a
+            # doubling step counts as divergence.
             if not math.isfinite(size) or (size >= (prev if kind == Kind.REGULAR else 2 * prev) and not rounding):
                 self.newton_iterations += iterations
                 return None, "the corrector diverged"

@@ -202,7 +202,8 @@ class Spectrum:
     is a growing oscillation of the undamped dynamics (they come in conjugate
     pairs; none can exist for a conservative problem); ``cap``: the largest
     modulus counted (module docstring); ``shift``, ``method``, ``radius``
-    (``arnoldi``: every eigenvalue closer than this to the shift was found).
+    (``arnoldi``: every eigenvalue closer than this to the shift was found),
+    ``k`` (``arnoldi``: how many eigenvalues that took; a good ``k`` for the next point of a branch).
     """
 
     eigenvalues: np.ndarray
@@ -214,6 +215,7 @@ class Spectrum:
     method: str
     radius: float = math.inf
     tol: float = NULL_TOL
+    k: int = 0  # arnoldi: the number of eigenvalues asked of ARPACK in the round that covered the reach
 
     @property
     def nearest(self) -> np.ndarray:
@@ -345,6 +347,7 @@ def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "a
         if method == "arnoldi":
             try:
                 nu, radius = _arnoldi(lu, U, W, k, reach + abs(shift))
+                k_used = 0 if nu is None else nu.size
             except spla.ArpackError:
                 nu = None
             if nu is None:           # the disc had to hold most of the spectrum (or ARPACK failed): do them all
@@ -362,7 +365,8 @@ def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "a
     null = np.abs(lam) <= tol
     flutter = ~unstable & ~null & (np.abs(lam.imag) > 1e-6 * np.abs(lam) + tol)
     return Spectrum(eigenvalues=lam, unstable=int(unstable.sum()), null=int(null.sum()), flutter=int(flutter.sum()),
-                    cap=cap, shift=shift, method=method, radius=radius, tol=tol)
+                    cap=cap, shift=shift, method=method, radius=radius, tol=tol,
+                    k=k_used if method == "arnoldi" else 0)
 
 
 def _cap(system, x, p) -> tuple[float, float]:

@@ -32,7 +32,7 @@ import numpy as np
 from ..branch import Branch
 from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, Stop, StopContinuation,
                             StopReason, Tracker)
-from ..linalg import scaled_smallest_singular_value
+from ..linalg import HeapTrimmer, scaled_smallest_singular_value
 from ..mesh import ErrorEstimator, adapted_mesh, halved
 from ..rod import RodParameters
 from ..system import SYSTEM_PARAMS, RodSystem, check_number
@@ -186,6 +186,11 @@ class Accuracy:
         return e
 
 
+#: Seconds between returns of the C heap's free pages to the system in a trace (None: never); see
+#: :class:`rodcont.linalg.HeapTrimmer`.
+TRIM_INTERVAL: float | None = 0.25
+
+
 class StabilityCount:
     """The number of unstable modes of each stored point (:func:`rodcont.stability.unstable_modes`).
 
@@ -214,6 +219,7 @@ class StabilityCount:
         self.ref = None       # (count, parameter) at the last counted non-singular point
         self.crossings = 0    # folds and branch points located since then
         self.missed: list = []
+        self.k = 8            # eigenvalues asked of ARPACK: the last count's (it grows along a branch)
 
     def __call__(self, system: RodSystem, pt: Point) -> int:
         if not system.straight:
@@ -222,7 +228,7 @@ class StabilityCount:
         self.since += 1
         special = pt.kind not in (Kind.REGULAR,)
         if self.last is None or self.fresh or special or self.since >= self.every:
-            from ..stability import unstable_modes
+            from ..stability import spectrum
             if system.param == "phi_L":
                 at, phi = system, pt.p
             else:  # the point's parameters as the base of a Phi-system (same controls)
@@ -231,7 +237,9 @@ class StabilityCount:
                 at.base, at.param, at.index, at.scale = system.params(pt.p), "phi_L", 0, 1.0
                 phi = float(at.base[0])
             try:
-                n = int(unstable_modes(at, pt.x, phi))
+                sp = spectrum(at, pt.x, phi, k=self.k)
+                n = int(sp.unstable)
+                self.k = max(sp.k, 8)
             except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
                 raise RuntimeError(f"stability count failed at {system.param} = {pt.p:.10g}: {exc}") from exc
             if pt.kind in (Kind.FOLD, Kind.BRANCH_POINT):
@@ -384,6 +392,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     accuracy = Accuracy(o.max_error)
     stability = StabilityCount()
     stability.missed = branch.missed_crossings
+    trim_heap = HeapTrimmer(TRIM_INTERVAL)
     t_start = time.perf_counter()
     seg = _Segment(system, np.asarray(x0, float), float(p0), tangent0, exact)
     segments = 0
@@ -494,14 +503,19 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     break
                 stability(sysm, pt)
                 recorder.add(pt, sysm.disc.breakpoints)
+                trim_heap()
                 last_recorded = (pt, sysm)
                 remeshes_here = 0
                 if callback is not None:
                     callback(pt)
                 # not at a point where the trace stops (a guard, a bound: the tracker's stop is set when it
                 # hands that point over): a new segment from there would start past the guard and never see it
-                # cross again (seen: the validity guard passed on a deep sag, L = 10)
-                if err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None:
+                # cross again (seen: the validity guard passed on a deep sag, L = 10). Nor at a special point
+                # whose location failed: it is near a singular point, where a new segment's first steps
+                # diverge at every size (seen: a helix in a pipe, N = 60, at its branch point Phi = 16.46);
+                # the step's end follows at once and is refined from instead
+                if (err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None
+                        and pt.located):
                     next_seg = _remesh(sysm, pt, err, accuracy, o)
                     break
             steps += tracker.steps
