@@ -123,7 +123,7 @@ class SingularMatrix(ArithmeticError):
 
 
 class LU:
-    """Sparse LU of a square CSC matrix ``A`` (``Pr A = L U``, natural column order).
+    """Sparse LU of a square CSC matrix ``A`` (``Pr A Pc = L U``; natural column order by default).
 
     ``solve(b)`` solves ``A x = b``; ``solve(b, trans=True)`` solves ``A^T x = b``.
     ``det()`` returns ``(sign, log|det|)``. For a bordered matrix whose last
@@ -131,9 +131,12 @@ class LU:
     with that row replaced (one extra solve, once).
     """
 
-    def __init__(self, A: sp.csc_matrix):
+    def __init__(self, A: sp.csc_matrix, ordering: str = "NATURAL"):
+        """``ordering``: SuperLU's column order. ``NATURAL`` suits the banded Jacobians of the
+        collocation; ``COLAMD`` bounds the fill where a dense border row meets a badly scaled band
+        (:class:`rodcont.mesh.ErrorEstimator`)."""
         try:
-            self._lu = spla.splu(A, permc_spec="NATURAL")
+            self._lu = spla.splu(A, permc_spec=ordering)
         except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
             raise SingularMatrix(str(exc)) from None
         self.n = A.shape[0]
