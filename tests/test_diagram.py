@@ -198,3 +198,21 @@ def test_fold_curve_in_gamma_passes_through_the_lagrangian_folds(tmp_path):
     for g in (0.0, 0.5, 2.0, 5.0):
         assert at[g].data["phi_L"] == pytest.approx(PRIMARY[g]["phi_L"], abs=1e-8), g
         assert at[g].data["stretch"] == pytest.approx(PRIMARY[g]["stretch"], abs=1e-7), g
+
+
+def test_a_diagram_branch_says_which_folds_it_detected_but_could_not_locate(tmp_path, capsys, monkeypatch):
+    """As a trace does (test_cli.py): a fold whose location fails is warned in the summary, per branch, and
+    kept in the branch group's ``unlocated`` attribute, not dropped silently."""
+    import json
+    import h5py
+    from conftest import run
+    from rodcont.continuation import Tracker
+    monkeypatch.setattr(Tracker, "locate", lambda self, *a, **k: None)
+    out = tmp_path / "d.h5"
+    code, stdout, err = run(["diagram", "--gamma", "1", "--phi-max", "14", "--out", str(out), "--quiet"], capsys)
+    assert code == 0, err
+    lines = [s for s in stdout.splitlines() if "warning: a fold between phi_L = " in s]
+    assert lines, stdout
+    with h5py.File(out, "r") as f:
+        kept = [k for g in f["branches"].values() for k, a, b in json.loads(g.attrs.get("unlocated", "[]"))]
+    assert kept and set(kept) == {"fold"} and len(kept) == len(lines)

@@ -956,6 +956,9 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
         else:
             click.echo(f"       ends: {db.ends[0]}")
             click.echo(f"             {db.ends[1]}")
+        for kind, a, b in db.branch.unlocated:
+            click.echo(f"       warning: a {kind.replace('_', ' ')} between phi_L = {a:.10g} and {b:.10g} was "
+                       f"detected but could not be located; it is not in the tables")
     for origin, why in dg.skipped:
         click.echo(f"  not traced: {origin}: {why}")
     click.echo(f"time             {elapsed:.2f} s")

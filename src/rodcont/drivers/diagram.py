@@ -396,9 +396,13 @@ def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: 
     run(system, x0, phi0, up_opts, branch=branch, recorder=rec, callback=callback)
     end_low = down.stop_reason if down is not None else "start of the trace at phi_L = 0"
     ends = (end_low, branch.stop_reason)
+    # folds and branch points detected but not located, on either side of the seed (the trace warns of each)
+    branch.unlocated = (down.unlocated if down is not None else []) + branch.unlocated
     if writer is not None:
         writer.set_attr("stop_reason_first", ends[0], f"branches/{j}")
         writer.set_attr("stop_reason", ends[1], f"branches/{j}")
+        if branch.unlocated:
+            writer.set_attr("unlocated", json.dumps(branch.unlocated), f"branches/{j}")
         rec.sync()
         writer.flush()
     return DiagramBranch(branch, origin, ends)
