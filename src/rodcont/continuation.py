@@ -562,7 +562,7 @@ class Tracker:
         tol = s.newton_tol
         # The Newton step whose factorisation gives the tangent is applied to the point: after it
         # the error is of the order of the square of that step. So the chord stops, and that step is
-        # taken, at NEAR sqrt(tol) (1e-7 for tol = 1e-10); one more correction with the new
+        # taken, at NEAR sqrt(tol) (1e-6 for tol = 1e-10); one more correction with the new
         # factorisation then measures what is left, and the point is accepted only if that is below
         # tol. Located points (folds, events) need the tangent itself to the tolerance: the tangent
         # is taken before the last step, so there the step must be below the tolerance.
