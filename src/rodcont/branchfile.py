@@ -196,14 +196,16 @@ def publish(path: str, image: bytes) -> None:
     real = os.path.realpath(path)
     d = os.path.dirname(real)
     tmp = side_file(path, "tmp")
-    data = _header(image) + image
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         try:
-            view = memoryview(data)
-            while view:
-                n = os.write(fd, view)
-                view = view[n:]
+            # header and image written one after the other: ``header + image`` would copy the image, a
+            # whole branch file (430 MB for a 2100-point trace at 60 000 unknowns) once more in memory
+            for part in (_header(image), image):
+                view = memoryview(part)
+                while view:
+                    n = os.write(fd, view)
+                    view = view[n:]
             os.fsync(fd)
         finally:
             os.close(fd)
