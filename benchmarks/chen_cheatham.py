@@ -59,7 +59,7 @@ import numpy as np
 
 from rodcont.contact import Wall
 from rodcont.curves import parse_reference
-from rodcont.drivers.solve import solve_equilibrium
+from rodcont.drivers.solve import first_unstable_tension, solve_equilibrium
 from rodcont.drivers.trace import trace
 from rodcont.rod import Jet, RodParameters
 from rodcont.system import RodSystem
@@ -125,33 +125,9 @@ class Shapes:
 
 def lateral_onset(rod, wall, N):
     """Compression / F_DP at which the rod on the bottom of the straight pipe first has an unstable mode."""
-    from rodcont.stability import unstable_modes
-    x = solve_equilibrium(None, 0.0, rod, N=N, T=10.0, wall=wall).x
-    state = {}
-
-    def count(T):
-        nonlocal x
-        s = RodSystem(rod, T=T, N=N, wall=wall)
-        r = s.disc.newton(x, s.params(0.0))
-        if not r.converged:
-            raise RuntimeError(f"lateral onset: no equilibrium on the bottom at T = {T:.6g}")
-        x = state[T] = r.x
-        return unstable_modes(s, x, 0.0)
-
     F = f_dp()
-    lo, hi = -0.9 * F, -1.2 * F
-    if count(-0.5 * F) or count(lo):
-        raise RuntimeError("lateral onset: already unstable at 0.9 F_DP")
-    if count(hi) == 0:
-        return math.nan
-    while abs(hi - lo) > 1e-4 * F:
-        mid = 0.5 * (lo + hi)
-        x = state[lo]
-        if count(mid) > 0:
-            hi = mid
-        else:
-            lo = mid
-    return -0.5 * (lo + hi) / F
+    T, n = first_unstable_tension(rod, (10.0, -0.5 * F, -0.9 * F), -1.2 * F, N=N, wall=wall, tol=1e-4 * F)
+    return -T / F if n else math.nan
 
 
 def f_dp():

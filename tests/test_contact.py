@@ -353,37 +353,15 @@ def test_a_rod_touching_the_pipe_at_one_point_converges_to_exact_contact():
 # Lateral buckling of a heavy rod lying in a horizontal pipe (Dawson and Paslay 1984)
 # --------------------------------------------------------------------------
 def _first_lateral_instability(L, N, c=0.005, w=10.0, EI=1.0):
-    """Compression at which the rod lying on the bottom of the pipe first has an unstable mode
-    (rodcont.stability.unstable_modes along T at Phi = 0, bisected to 1e-4 relative), and that count."""
-    from rodcont.stability import unstable_modes
-    from rodcont.system import RodSystem
+    """Compression / F_DP at which the rod lying on the bottom of the pipe first has an unstable mode
+    (rodcont.stability.unstable_modes along T at Phi = 0, bisected to 1e-4 F_DP), and that count."""
+    from rodcont.drivers.solve import first_unstable_tension
     rod = RodParameters(EI=EI, GJ=0.75, EA=1e6, w=w, L=L)  # nearly inextensible, as the classical theory
-    wall = Wall(c, eps=1e-5)
-    x = solve_equilibrium(None, 0.0, rod, N=N, T=10.0, wall=wall).x
-    state = {}
-
-    def count(T):
-        nonlocal x
-        s = RodSystem(rod, T=T, N=N, wall=wall)
-        r = s.disc.newton(x, s.params(0.0))
-        assert r.converged
-        x = r.x
-        state[T] = x
-        return unstable_modes(s, x, 0.0)
-
     F_dp = 2 * np.sqrt(EI * w / c)
-    assert count(10.0) == 0 and count(-0.5 * F_dp) == 0 and count(-0.95 * F_dp) == 0
-    lo, hi = -0.95 * F_dp, -1.2 * F_dp
-    n_hi = count(hi)
-    assert n_hi >= 1
-    while abs(hi - lo) > 1e-4 * F_dp:
-        mid = 0.5 * (lo + hi)
-        x = state[lo]
-        if count(mid) > 0:
-            hi = mid
-        else:
-            lo = mid
-    return -hi / F_dp, n_hi
+    T, n = first_unstable_tension(rod, (10.0, -0.5 * F_dp, -0.95 * F_dp), -1.2 * F_dp, N=N, wall=Wall(c, eps=1e-5),
+                                  tol=1e-4 * F_dp)
+    assert n >= 1
+    return -T / F_dp, n
 
 
 def test_lateral_buckling_in_a_horizontal_pipe_tends_to_dawson_paslay():

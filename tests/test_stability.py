@@ -247,3 +247,17 @@ def test_traces_store_the_counts_of_method_one(tmp_path):
         s = point_system(d, i)
         assert d.branch["unstable_modes"][i] == unstable_modes(s, d.point(i)["x"], d.branch["phi_L"][i]), i
     assert d.folds["unstable_before"][0] == 0 and d.folds["unstable_after"][0] == 1
+
+
+def test_first_unstable_tension_finds_the_euler_load_of_the_straight_weightless_rod():
+    """rodcont.drivers.solve.first_unstable_tension against the closed form: the straight, weightless,
+    clamped rod loses stability at the Euler load (extensible, self-feeding: euler_tension). A tension end
+    with no unstable mode gives nan; a 'stable' waypoint past the load is refused."""
+    from rodcont.drivers.solve import euler_tension, first_unstable_tension
+    rod = RodParameters(w=0.0)
+    TE = euler_tension(rod)
+    T, n = first_unstable_tension(rod, (10.0, 0.5 * TE), 1.5 * TE, N=15, tol=1e-6 * abs(TE))
+    assert n >= 1 and T == pytest.approx(TE, rel=1e-5)
+    assert first_unstable_tension(rod, (10.0,), 5.0)[1] == 0
+    with pytest.raises(ValueError, match="already has an unstable mode"):
+        first_unstable_tension(rod, (10.0, 1.2 * TE), 1.5 * TE)

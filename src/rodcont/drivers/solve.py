@@ -148,3 +148,45 @@ def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | No
     out["alpha_min"] = sysm.model.stretch_factor_min(sysm.disc, x, sysm.params(phi_L))
     check_physical(out, f"T = {T:g}, phi_L = {phi_L:g}")
     return Equilibrium(out, x, sysm, r)
+
+
+def first_unstable_tension(rod: RodParameters, stable, unstable: float, N: int = 15, wall=None,
+                           tol: float = 1e-4) -> tuple[float, int]:
+    """The axial force at which the untwisted rod (Phi = 0) first has an unstable mode, by bisection on
+    the count of :func:`rodcont.stability.unstable_modes` (straight reference, e.g. lateral buckling of a
+    rod lying in a pipe: ``wall``).
+
+    ``stable``: forces walked through in order, the equilibrium solved at the first and carried to
+    each next by Newton; every one must have no unstable mode (else ``ValueError``). ``unstable``: a
+    force beyond the last of them. The bracket ``[stable[-1], unstable]`` is halved until shorter than
+    ``tol``; returns ``(T, n)``: its end on the unstable side and the count at ``unstable``, or
+    ``(nan, 0)`` when ``unstable`` has no unstable mode. ``ConvergenceError`` when Newton fails.
+    """
+    from ..stability import unstable_modes
+    stable = [float(T) for T in stable]
+    x = solve_equilibrium(None, 0.0, rod, N=N, T=stable[0], wall=wall).x
+    at: dict = {}
+
+    def count(T: float, start: np.ndarray) -> int:
+        s = RodSystem(rod, T=T, N=N, wall=wall)
+        r = s.disc.newton(start, s.params(0.0))
+        if not r.converged:
+            raise ConvergenceError(f"no equilibrium of the untwisted rod at T = {T:.6g} ({r.message})")
+        at[T] = r.x
+        return unstable_modes(s, r.x, 0.0)
+
+    for T in stable:
+        if count(T, x):
+            raise ValueError(f"the rod already has an unstable mode at T = {T:.6g}, given as stable")
+        x = at[T]
+    lo, hi = stable[-1], float(unstable)
+    n = count(hi, at[lo])
+    if n == 0:
+        return math.nan, 0
+    while abs(hi - lo) > tol:
+        mid = 0.5 * (lo + hi)
+        if count(mid, at[lo]) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return hi, n
