@@ -93,7 +93,9 @@ def test_an_existing_file_is_kept_unless_overwrite_and_a_failing_run_leaves_it(g
 
 
 def _start_trace(out, *extra):
-    return subprocess.Popen(CLI + ["trace", "--gamma", "1", "--out", str(out), "--quiet", *extra],
+    # short steps (527 points, about 2 s): the plain trace ends within a second of its first point, and the
+    # tests below raced it (a second writer found the first already finished and wrote)
+    return subprocess.Popen(CLI + ["trace", "--gamma", "1", "--ds-max", "0.02", "--out", str(out), "--quiet", *extra],
                             env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -107,7 +109,7 @@ def _wait_for(path, timeout=60):
 
 def test_a_second_writer_is_refused_and_the_first_finishes(tmp_path):
     out = tmp_path / "g.h5"
-    first = _start_trace(out, "--max-steps", "400")
+    first = _start_trace(out)
     _wait_for(out)
     second = subprocess.run(CLI + ["trace", "--gamma", "2", "--out", str(out), "--overwrite", "--quiet"],
                             env=ENV, capture_output=True, text=True, timeout=120)
