@@ -80,6 +80,16 @@ class Branch:
         self.meshes.append(np.asarray(breakpoints, float))
         return len(self.coefficients) - 1
 
+    def thin(self, i: int, every: int) -> None:
+        """Drop point ``i``'s solution unless a file with ``store_every = every`` keeps it
+        (as :meth:`rodcont.branchfile.BranchWriter.add_point` does): every ``every``-th point's and the special points'.
+        Its tangent is kept at special points only. Dropped arrays become empty."""
+        special = str(self.table["kind"][i]) not in ("regular", "forced")
+        if not (special or i % every == 0):
+            self.coefficients[i] = np.empty(0)
+        if not special:
+            self.tangents[i] = np.empty(0)
+
     def column(self, name: str) -> np.ndarray:
         return np.asarray(self.table[name])
 

@@ -271,7 +271,7 @@ def trace_options(f):
         click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=400, show_default=True,
                      help="largest number of subintervals the adaptive mesh may use"),
         click.option("--store-every", type=click.IntRange(1, 10**6), default=1, show_default=True,
-                     help="keep the solution of every M-th point (and of special points and the last): smaller files"),
+                     help="keep the solution of every M-th point (and of special points and the last), in the file and in memory: smaller files, less memory on long traces"),
     ]
     for opt in reversed(opts):
         f = opt(f)

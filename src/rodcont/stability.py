@@ -460,13 +460,20 @@ class _View:
 
     def point(self, i):
         if hasattr(self.b, "table"):
-            return np.asarray(self.b.coefficients[i], float), np.asarray(self.b.meshes[i], float)
+            x = np.asarray(self.b.coefficients[i], float)
+            if x.size == 0:  # a branch traced with store_every > 1 keeps what its file keeps
+                raise ValueError(f"point {i} of the branch has no stored solution (it was traced with "
+                                 f"store_every > 1: every M-th point and the special ones are kept)")
+            return x, np.asarray(self.b.meshes[i], float)
         pt = self.b.point(i)
         return pt["x"], pt["breakpoints"]
 
     def tangent(self, i):
         if hasattr(self.b, "table"):
             t = np.asarray(self.b.tangents[i], float)
+            if t.size == 0:
+                raise ValueError(f"point {i} of the branch has no stored tangent (it was traced with "
+                                 f"store_every > 1: the special points keep theirs)")
             return t[:-1]
         return self.b.direction(i)[0]
 

@@ -319,10 +319,18 @@ class Recorder:
     """Adds points to a :class:`Branch` and, if any, to a branch-file group; publishes
     the file on every special point and at least every second."""
 
-    def __init__(self, branch: Branch, writer=None, group=None, contact: "_ContactRows | None" = None):
+    def __init__(self, branch: Branch, writer=None, group=None, contact: "_ContactRows | None" = None,
+                 thin: int = 1):
+        """``thin = M > 1``: the branch in memory keeps what a file written with ``store_every = M`` keeps
+        (the solution of every M-th point, of the special points and of the last; tangents at the special
+        points and the last), so a long trace's memory does not grow with every point's unknowns."""
         self.branch, self.writer, self.group, self.contact = branch, writer, group, contact
+        self.thin = int(thin)
 
     def add(self, pt: Point, breakpoints: np.ndarray) -> int:
+        if self.thin > 1 and len(self.branch):
+            # the previous point is no longer the last (its contact rows are computed: fill ran at its add)
+            self.branch.thin(len(self.branch) - 1, self.thin)
         i = self.branch.add(pt, breakpoints)
         if self.writer is not None:
             row = dict(pt.data)
@@ -710,7 +718,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     (:mod:`rodcont.curves`; default the straight span ``L e1``); ``wall``: a conduit
     wall around it (:class:`rodcont.contact.Wall`; default none). ``store_every``: keep the solution (coefficients,
     tangent) of every ``store_every``-th point only, and of every special point
-    and the last one (smaller files; the table keeps every point).
+    and the last one, in the file and in the returned branch (smaller files, and the memory of a long
+    trace; the table keeps every point, ``coefficients[i]`` is empty where the solution was not kept).
     ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
     """
     try:
@@ -810,7 +819,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
                              + (CONTACT_COLUMNS if wall is not None else ()))
         _mesh_group(writer, system)
     contact = _ContactRows(system) if writer is not None and wall is not None else None
-    recorder = Recorder(branch, writer, group, contact)
+    recorder = Recorder(branch, writer, group, contact, thin=store_every if writer is not None else 1)
     try:
         with np.errstate(all="ignore"):
             run(system, x0, p0, opts, tangent0=tangent0, exact=exact, branch=branch, recorder=recorder,
