@@ -757,6 +757,32 @@ def test_a_contact_zone_that_splits_is_located_and_tends_to_the_opening_of_the_f
     assert 0 < err[1e-6] < err[1e-4] / 3 and err[1e-6] < 0.1
 
 
+@pytest.mark.filterwarnings("ignore:the number of unstable modes")  # out-of-plane modes of the compressed rod
+def test_long_steps_in_T_keep_the_rod_on_the_wall():
+    """The same rod and wall (eps = 1e-6) traced in T with ds_max = 2: before, a step from the rod pressed on
+    the wall at T = -127.1 converged on the straight rod (the deflection gone; the arclength distance from
+    the predictor, dominated by T, read 0.03), and the trace recorded a lift-off there and went on straight.
+    The corrector's change of the deflection relative to the predictor (1.0 there, below 0.8 on every
+    resolved step seen) now rejects such a step: the rod stays on the wall and its zone splits near T_flat
+    as with the default steps."""
+    from scipy.optimize import brentq
+    from rodcont.drivers.trace import trace
+    rod, c = RodParameters(w=0.1, EA=1e5), 0.01
+    T_flat = brentq(lambda T: _point_contact_elastica(T, c, rod.w, rod.EI, rod.EA, rod.L)["m_mid"], -150, -100,
+                    xtol=1e-10)
+    wall = Wall(c, eps=1e-6, force_scale=10.0)
+    eq = solve_equilibrium(None, 0.0, rod, T=-20.0, wall=wall)
+    b = trace(rod=rod, T=-20.0, wall=wall, param="T", start=(eq.x, -20.0, None), ds_max=2.0,
+              breakpoints=eq.system.disc.breakpoints, phi_L=0.0, p_range=(-200.0, 0.0), direction=-1)
+    t = b.table
+    events = [i for i, kind in enumerate(t["kind"]) if "split of zones" in str(kind)]
+    assert len(events) == 2  # the onset, then the split
+    onset, split = events
+    assert min(t["contact_zones"][onset + 1:]) >= 1 and t["contact_zones"][-1] == 2
+    assert min(t["stretch"][onset:]) > 0.5 * t["stretch"][onset]  # never the straight rod again
+    assert 0 < t["T"][split] / T_flat - 1 < 0.1
+
+
 def test_clearance_stations_are_mesh_breakpoints():
     """The slope of a clearance table jumps at its stations (the axial wall force with it): they are
     breakpoints of every mesh, uniform (discretise) or adapted (RodSystem.conform), like a well's stations;

@@ -10,7 +10,12 @@ optionally ``linearise(x, p) -> (F, J, F_p)`` doing both at once,
 ``accept(x, p)``, told of every accepted point, and ``relative_change(x0, x1)``,
 a problem's own measure of how much a step changed the solution (a step
 above ``max_change`` is retried shorter: a feature the arclength norm hardly
-sees, such as a small deflection that doubles, is resolved). The tracker follows the curve
+sees, such as a small deflection that doubles, is resolved), and
+``relative_correction(x0, x_pred, x1)``, the same measure of how far the corrector
+moved the predictor: a corrector that removes (or creates) a feature the predictor
+carried has converged on another branch, where the arclength norm, dominated by
+the parameter, may see almost nothing (a step above ``max_change`` is retried
+shorter). The tracker follows the curve
 ``(x(s), p(s))`` with the arclength of the weighted inner product
 (BifurcationKit's normalisation, so a step means the same on any mesh)::
 
@@ -567,7 +572,7 @@ class Tracker:
         # tol. Located points (folds, events) need the tangent itself to the tolerance: the tangent
         # is taken before the last step, so there the step must be below the tolerance.
         accept = max(tol, NEAR * math.sqrt(tol)) if kind == Kind.REGULAR else tol
-        info = dict(contraction=0.0, distance=0.0, newton=0)
+        info = dict(contraction=0.0, distance=0.0, newton=0, predictor=y_pred[:-1])
         iterations = 0
         if chord is not None:
             sizes: list[float] = []
@@ -877,6 +882,7 @@ class Tracker:
         new, info = self._correct(base, ds)
         if new is None:
             return None, info
+        x_pred = info.pop("predictor")
         if info["distance"] > s.max_distance:
             return None, "the corrector moved too far from the predictor (another branch?)"
         cos_t = self._wdot(new, base)
@@ -894,6 +900,13 @@ class Tracker:
             info["change"] = float(change(base.x, new.x))
             if info["change"] > s.max_change:
                 return None, "the solution changes too much in one step (another branch?)"
+        correction = getattr(self.problem, "relative_correction", None)
+        if correction is not None and base.x.size == new.x.size:
+            # seen: a trace in T of a rod pressed on a wall, with ds_max = 2, converged from the bent rod's
+            # predictor onto the straight rod (the deflection removed: 1.0; the arclength distance 0.03)
+            info["correction"] = float(correction(base.x, x_pred, new.x))
+            if info["correction"] > s.max_change:
+                return None, "the corrector changed the solution's shape more than the step predicted (another branch?)"
         info["angle"] = math.acos(min(1.0, cos_t))
         return new, info
 
@@ -907,6 +920,8 @@ class Tracker:
             factors.append(1.0)
         if info.get("change", 0) > 0:
             factors.append(0.5 * s.max_change / info["change"])
+        if info.get("correction", 0) > 0:
+            factors.append(0.5 * s.max_change / info["correction"])
         if info.get("distance", 0) > 0:
             factors.append(math.sqrt(0.5 * s.max_distance / info["distance"]))
         f = max(s.shrink, min(factors))

@@ -145,6 +145,18 @@ class RodSystem:
         size = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-12 * self.rod.L)
         return float(np.max(np.abs(b - a))) / size
 
+    def relative_correction(self, x0, x_pred, x1) -> float:
+        """How far the corrector moved the predictor's transverse deflection, relative to the deflection's
+        size at the step's two ends: ``|Delta1 - Delta_pred| / max(|Delta0|, |Delta1|)`` (B-spline coefficients,
+        max norm; sizes below 1e-12 L count as 1e-12 L). Small on any resolved step, whatever the
+        parameter (the weight homotopy's deflection that grows from zero is predicted by its tangent);
+        about 1 where the corrector lands on another branch with or without the deflection (the
+        straight rod)."""
+        idx = self._transverse
+        a, q, b = x0[idx], x_pred[idx], x1[idx]
+        size = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-12 * self.rod.L)
+        return float(np.max(np.abs(b - q))) / size
+
     def interval_defect(self, x, value) -> np.ndarray:
         return self.model.output_evaluator(self.disc).interval_defect(x, self.params(value))
 

@@ -363,6 +363,9 @@ class _Segment:
     p: float
     tangent: tuple | None
     exact: bool = False
+    # the start is a point not yet stored (a step's end, re-converged on the new mesh): store it, at this
+    # arclength; otherwise the start is the last stored point, converged again
+    record_at: float | None = None
 
 
 def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tangent0=None, exact: bool = False,
@@ -455,7 +458,7 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
             err = accuracy(sysm, first)
             if err > accuracy.trigger and o.adapt and start_attempts < 6 and sysm.disc.N < o.N_max:
                 start_attempts += 1
-                seg = _remesh(sysm, first, err, accuracy, o)
+                seg = dataclasses.replace(_remesh(sysm, first, err, accuracy, o), record_at=seg.record_at)
                 continue
             if err > o.max_error:
                 if last_recorded is None:
@@ -474,6 +477,13 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 why = tracker._check_start(first)
                 if why is not None:
                     raise TraceError(f"cannot start there: {why.message}")
+                stability(sysm, first)
+                recorder.add(first, sysm.disc.breakpoints)
+                last_recorded = (first, sysm)
+                if callback is not None:
+                    callback(first)
+            elif seg.record_at is not None:
+                first.arclength, first.kind = seg.record_at, Kind.REGULAR
                 stability(sysm, first)
                 recorder.add(first, sysm.disc.breakpoints)
                 last_recorded = (first, sysm)
@@ -499,6 +509,13 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                     if o.adapt and sysm.disc.N < o.N_max and remeshes_here < 4:
                         remeshes_here += 1
                         base = last_recorded[0]
+                        if base.kind == Kind.BRANCH_POINT and pt.kind == Kind.REGULAR:
+                            # not from the branch point: there the bordered matrix is singular, and a segment
+                            # started on it went on along the other branch (a compressed rod on a wall, in T).
+                            # From this step's end instead, on the branch, stored once converged on the mesh
+                            next_seg = dataclasses.replace(
+                                _remesh(sysm, pt, err, accuracy, o, at_least=err), record_at=pt.arclength)
+                            break
                         next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
                                            accuracy, o, at_least=err, ahead=(sysm, pt))
                         break
@@ -521,9 +538,12 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
                 # cross again (seen: the validity guard passed on a deep sag, L = 10). Nor at a special point
                 # whose location failed: it is near a singular point, where a new segment's first steps
                 # diverge at every size (seen: a helix in a pipe, N = 60, at its branch point Phi = 16.46);
-                # the step's end follows at once and is refined from instead
+                # the step's end follows at once and is refined from instead. Nor at a branch point, where the
+                # bordered matrix of the new segment's start and first step is singular: its first step went
+                # on along the other branch (a compressed rod on a wall, in T, eps = 1e-4: the trace ended
+                # with one contact zone instead of two)
                 if (err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None
-                        and pt.located):
+                        and pt.located and pt.kind != Kind.BRANCH_POINT):
                     next_seg = _remesh(sysm, pt, err, accuracy, o)
                     break
             steps += tracker.steps
