@@ -783,6 +783,43 @@ def test_long_steps_in_T_keep_the_rod_on_the_wall():
     assert 0 < t["T"][split] / T_flat - 1 < 0.1
 
 
+def test_a_step_rejected_for_its_error_after_a_branch_point_is_refined_from_its_end(monkeypatch):
+    """A step's end whose estimated error is above max_error used to send the trace back to the last stored
+    point, on a refined mesh; when that point is a branch point, the new segment starts where the bordered
+    matrix is singular. The step's end is refined from instead, converged on the new mesh and stored once
+    (forced here: the first regular point after the branch point at T = -80.68 reads an error of 1e-5)."""
+    from rodcont.continuation import Kind
+    from rodcont.drivers import trace as tr
+    starts = []
+    remesh = tr._remesh
+    monkeypatch.setattr(tr, "_remesh", lambda sysm, pt, *a, **k: starts.append((pt.p, str(pt.kind))) or
+                        remesh(sysm, pt, *a, **k))
+    measure = tr.Accuracy.__call__
+    seen = dict(branch_point=None, forced=None)
+
+    def accuracy(self, system, pt):
+        e = measure(self, system, pt)
+        if pt.kind == Kind.BRANCH_POINT:
+            seen["branch_point"] = pt.p
+        elif seen["branch_point"] is not None and seen["forced"] is None and pt.kind == Kind.REGULAR:
+            seen["forced"] = pt.p
+            return 10 * 1e-6
+        return e
+    monkeypatch.setattr(tr.Accuracy, "__call__", accuracy)
+    rod = RodParameters(w=0.1, EA=1e5)
+    wall = Wall(0.01, eps=1e-4, force_scale=10.0)
+    eq = solve_equilibrium(None, 0.0, rod, T=-20.0, wall=wall)
+    b = tr.trace(rod=rod, T=-20.0, wall=wall, param="T", start=(eq.x, -20.0, None),
+                 breakpoints=eq.system.disc.breakpoints, phi_L=0.0, p_range=(-100.0, 0.0), direction=-1)
+    t = b.table
+    assert seen["forced"] is not None and seen["branch_point"] == pytest.approx(-80.679, abs=1e-3)
+    assert all(p != seen["branch_point"] for p, _ in starts)  # no segment from the branch point
+    (i,) = [j for j, kind in enumerate(t["kind"]) if kind == "branch_point"]
+    assert t["kind"][i + 1] == "regular" and len(b.meshes[i + 1]) > len(b.meshes[i])  # its end, on a finer mesh
+    assert np.all(np.diff(t["T"]) < 0) and np.all(np.diff(t["arclength"]) > 0)  # stored once, in order
+    assert t["T"][-1] == -100.0 and t["unstable_modes"][i + 1] == t["unstable_modes"][i - 1] + 1
+
+
 def test_clearance_stations_are_mesh_breakpoints():
     """The slope of a clearance table jumps at its stations (the axial wall force with it): they are
     breakpoints of every mesh, uniform (discretise) or adapted (RodSystem.conform), like a well's stations;
