@@ -777,11 +777,17 @@ class Tracker:
 
     # ---- location of special points --------------------------------------------
     def locate(self, base: Point, ds_hi: float, g: Callable[[Point], float], g0: float, g1: float,
-               tol: float, kind: str) -> Point | None:
+               tol: float, kind: str, continuous: bool = True) -> Point | None:
         """Secant (Illinois) on ``g`` along the arc from ``base``; ``g(0) = g0``, ``g(ds_hi) = g1``.
 
         Returns the located point (``located`` True when ``|g| <= tol``), the
         best bracketed one otherwise, or None if no point in the bracket converged.
+        A bracket that shrinks to rounding with ``|g|`` still above ``tol`` is a jump
+        of ``g``: the point is located there only if ``g`` may jump (``continuous``
+        False: a quantity sampled on a grid); a continuous ``g`` (the tangent's
+        ``dp/ds``, a determinant) that jumps has its two sides on different
+        branches (seen at a crossing of two branches, 5e-5 from it), so the point
+        is kept as bracketed.
         """
         s = self.settings
         a, b, fa, fb = 0.0, ds_hi, g0, g1
@@ -818,6 +824,7 @@ class Tracker:
                     fb *= 0.5
                 side = 1
             if abs(b - a) <= 1e-15 * (1 + abs(ds_hi)):
+                pt.located = not continuous
                 return pt
         if best is not None:
             best.located = False

@@ -640,7 +640,9 @@ class ZoneChangeDetector(Detector):
         g0, g1 = g(base), g(new)
         f = None
         if g0 * g1 < 0:
-            f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), f"event:{self.name}")
+            # (g jumps where the pressure's sample changes: a bracket shrunk to rounding is the location)
+            f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), f"event:{self.name}",
+                               continuous=False)
         if f is None or others:
             import warnings
             warnings.warn(f"the contact zones changed from {n0} to {n1} between {self.system.param} = "
