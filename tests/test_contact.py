@@ -783,6 +783,22 @@ def test_long_steps_in_T_keep_the_rod_on_the_wall():
     assert 0 < t["T"][split] / T_flat - 1 < 0.1
 
 
+def test_a_count_that_jumps_past_a_branch_point_warns_of_another_branch():
+    """Not fixed (README, Limits): with ds_max = 0.2 the trace of the compressed rod on a wall (eps = 1e-4)
+    goes on past the branch point at T = -157.26 along a nearby symmetric branch with one contact zone (the
+    branch, traced with short steps on a fixed mesh, splits into two zones at T = -189.82). What tells is the
+    unstable-mode count, 1 to 4 across one located branch point; its warning now names that cause too,
+    besides two crossings in one step."""
+    from rodcont.drivers.trace import trace
+    rod = RodParameters(w=0.1, EA=1e5)
+    wall = Wall(0.01, eps=1e-4, force_scale=10.0)
+    eq = solve_equilibrium(None, 0.0, rod, T=-20.0, wall=wall)
+    with pytest.warns(RuntimeWarning, match="the trace went on along another branch close to its own"):
+        b = trace(rod=rod, T=-20.0, wall=wall, param="T", start=(eq.x, -20.0, None), ds_max=0.2, ds=0.1,
+                  breakpoints=eq.system.disc.breakpoints, phi_L=0.0, p_range=(-200.0, 0.0), direction=-1)
+    assert b.table["contact_zones"][-1] == 1 and b.missed_crossings
+
+
 def test_a_step_rejected_for_its_error_after_a_branch_point_is_refined_from_its_end(monkeypatch):
     """A step's end whose estimated error is above max_error used to send the trace back to the last stored
     point, on a refined mesh; when that point is a branch point, the new segment starts where the bordered

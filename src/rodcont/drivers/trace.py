@@ -258,7 +258,10 @@ class StabilityCount:
                                   + ("here the rod is symmetric about its axis and its eigenvalues cross in "
                                      "pairs: a weight across the axis, however small, separates them"
                                      if _symmetric_about_axis(system) else
-                                     "trace that interval with a smaller --ds-max to separate them"),
+                                     "trace that interval with a smaller --ds-max to separate them"
+                                     + ("; or, near a located branch point, the trace went on along another "
+                                        "branch close to its own (seen in T on a rod pressed on a wall): a "
+                                        "second trace with other steps shows which" if self.crossings else "")),
                                   RuntimeWarning, stacklevel=2)
                 self.ref, self.crossings = (n, float(pt.p)), 0
             self.last, self.since = n, 0
