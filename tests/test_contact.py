@@ -629,6 +629,7 @@ def test_a_compressed_rod_buckles_onto_the_wall_as_the_constrained_elastica():
     from scipy.optimize import brentq
     from contact_reference import onset_clearance
     from rodcont.drivers.trace import trace
+    from rodcont.mesh import halved
     from rodcont.system import RodSystem
     rod, c = RodParameters(w=0.1, EA=1e5), 0.01
     T_star = brentq(lambda T: onset_clearance(T, w=rod.w, EA=rod.EA) - c, -38.5, -38.0, xtol=1e-12)
@@ -648,10 +649,18 @@ def test_a_compressed_rod_buckles_onto_the_wall_as_the_constrained_elastica():
         assert len(con["zones"]) == 1 and con["zones"][0][0] < 0.5 < con["zones"][0][1]
         alpha0 = 1.0 + sysm.disc.evaluate(x, np.array([0.0]), 5)[0] / rod.EA
         M0 = rod.EI * alpha0 * sysm.disc.evaluate(x, np.array([0.0]), 1, 2)[0]
+        # the side force on the final mesh halved twice (a nested space: the point carries over exactly), where
+        # it is resolved: on the trace's own mesh (N = 38 for eps = 1e-6) it is the stiffest output and read
+        # 8.4e-4 or 1.0e-3 off depending on the steps that built the mesh (the accuracy guard measures the
+        # centreline), on the halved meshes 1.4e-5, 3.39e-5, 3.28e-5, 3.29e-5 (N = 76 .. 608)
+        fine = RodSystem(rod, T=-100.0, breakpoints=halved(halved(b.meshes[-1])), wall=wall)
+        r = fine.disc.newton(fine.disc.transfer(x, sysm.disc), fine.params(0.0), tol=1e-11)
+        assert r.converged
+        side_force = fine.model.contact(fine.disc, r.x, fine.params(0.0))["side_force"]
         err[eps] = dict(onset=b.table["T"][i] / T_star - 1, l0=out["l0"] / ref["l0"] - 1, M0=M0 / ref["M0"] - 1,
-                        force=con["side_force"] / ref["force"] - 1)
+                        force=side_force / ref["force"] - 1)
     assert abs(err[1e-4]["M0"]) > 3 * abs(err[1e-5]["M0"]) > 9 * abs(err[1e-6]["M0"])
-    assert abs(err[1e-6]["M0"]) < 2e-4 and abs(err[1e-6]["l0"]) < 1e-7 and abs(err[1e-6]["force"]) < 1e-3
+    assert abs(err[1e-6]["M0"]) < 2e-4 and abs(err[1e-6]["l0"]) < 1e-7 and abs(err[1e-6]["force"]) < 1e-4
     assert abs(err[1e-4]["l0"]) > 3 * abs(err[1e-5]["l0"]) > 9 * abs(err[1e-6]["l0"])
     assert abs(err[1e-4]["onset"]) > 2.5 * abs(err[1e-5]["onset"]) > 6 * abs(err[1e-6]["onset"])
 
@@ -764,7 +773,8 @@ def test_long_steps_in_T_keep_the_rod_on_the_wall():
     the predictor, dominated by T, read 0.03), and the trace recorded a lift-off there and went on straight.
     The corrector's change of the deflection relative to the predictor (1.0 there, below 0.8 on every
     resolved step seen) now rejects such a step: the rod stays on the wall and its zone splits near T_flat
-    as with the default steps."""
+    as with the default steps. (It rejects only: as a factor of the step control too, it shortened steps
+    before the contact onset, where the mesh then adapted less, and the onset moved by 2.5e-4.)"""
     from scipy.optimize import brentq
     from rodcont.drivers.trace import trace
     rod, c = RodParameters(w=0.1, EA=1e5), 0.01
@@ -781,14 +791,21 @@ def test_long_steps_in_T_keep_the_rod_on_the_wall():
     assert min(t["contact_zones"][onset + 1:]) >= 1 and t["contact_zones"][-1] == 2
     assert min(t["stretch"][onset:]) > 0.5 * t["stretch"][onset]  # never the straight rod again
     assert 0 < t["T"][split] / T_flat - 1 < 0.1
+    # the onset where uniform meshes of 640 and 1280 subintervals put it (-38.582411, -38.582456): when the guard
+    # also shortened the steps before it, the mesh adapted there was coarser and the onset 2.5e-4 off
+    assert t["T"][onset] == pytest.approx(-38.58243, rel=2e-6)
+    # the branch points, located: a secant bracket that shrinks to rounding with both its sides on the same
+    # solution is a location to rounding (a first version of the jump test called these bracketed)
+    bps = [i for i, kind in enumerate(t["kind"]) if kind == "branch_point"]
+    assert [round(t["T"][i], 3) for i in bps] == [-80.642, -157.262] and all(t["located"][i] for i in bps)
 
 
 def test_a_count_that_jumps_past_a_branch_point_warns_of_another_branch():
     """Not fixed (README, Limits): with ds_max = 0.2 the trace of the compressed rod on a wall (eps = 1e-4)
     goes on past the branch point at T = -157.26 along a nearby symmetric branch with one contact zone (the
     branch, traced with short steps on a fixed mesh, splits into two zones at T = -189.82). What tells is the
-    unstable-mode count, 1 to 4 across one located branch point; its warning now names that cause too,
-    besides two crossings in one step."""
+    unstable-mode count, which changes by more than the located branch points allow (2 to 4 here); its
+    warning now names that cause too, besides two crossings in one step."""
     from rodcont.drivers.trace import trace
     rod = RodParameters(w=0.1, EA=1e5)
     wall = Wall(0.01, eps=1e-4, force_scale=10.0)

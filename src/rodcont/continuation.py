@@ -782,17 +782,19 @@ class Tracker:
 
         Returns the located point (``located`` True when ``|g| <= tol``), the
         best bracketed one otherwise, or None if no point in the bracket converged.
-        A bracket that shrinks to rounding with ``|g|`` still above ``tol`` is a jump
-        of ``g``: the point is located there only if ``g`` may jump (``continuous``
-        False: a quantity sampled on a grid); a continuous ``g`` (the tangent's
-        ``dp/ds``, a determinant) that jumps has its two sides on different
-        branches (seen at a crossing of two branches, 5e-5 from it), so the point
-        is kept as bracketed.
+        A bracket that shrinks to rounding with ``|g|`` still above ``tol``: where ``g``
+        may jump (``continuous`` False: a quantity sampled on a grid) that is the
+        location; where it is continuous (the tangent's ``dp/ds``, a determinant) it is
+        the location to rounding if the points on the bracket's two sides are the same
+        solution, but if they differ (by more than 1e-9 in the arclength norm) the two
+        sides lie on different branches (seen at a crossing of two branches, 5e-5 from
+        it, the point on the other branch) and the point is kept as bracketed.
         """
         s = self.settings
         a, b, fa, fb = 0.0, ds_hi, g0, g1
         side = 0
         best = last = None
+        ends = [base, None]  # the converged points at a and b (None: the step's end, not at hand)
         for _ in range(s.locate_max_iter):
             m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
             if not (min(a, b) < m < max(a, b)):
@@ -815,16 +817,20 @@ class Tracker:
                 return pt
             if (fm > 0) == (fb > 0):
                 b, fb = m, fm
+                ends[1] = pt
                 if side == -1:
                     fa *= 0.5
                 side = -1
             else:
                 a, fa = m, fm
+                ends[0] = pt
                 if side == 1:
                     fb *= 0.5
                 side = 1
             if abs(b - a) <= 1e-15 * (1 + abs(ds_hi)):
-                pt.located = not continuous
+                qa, qb = ends
+                if continuous and qb is not None:
+                    pt.located = self._wnorm(np.append(qa.x - qb.x, qa.p - qb.p)) <= 1e-9 * (1 + abs(ds_hi))
                 return pt
         if best is not None:
             best.located = False
@@ -927,8 +933,6 @@ class Tracker:
             factors.append(1.0)
         if info.get("change", 0) > 0:
             factors.append(0.5 * s.max_change / info["change"])
-        if info.get("correction", 0) > 0:
-            factors.append(0.5 * s.max_change / info["correction"])
         if info.get("distance", 0) > 0:
             factors.append(math.sqrt(0.5 * s.max_distance / info["distance"]))
         f = max(s.shrink, min(factors))

@@ -259,9 +259,9 @@ class StabilityCount:
                                      "pairs: a weight across the axis, however small, separates them"
                                      if _symmetric_about_axis(system) else
                                      "trace that interval with a smaller --ds-max to separate them"
-                                     + ("; or, near a located branch point, the trace went on along another "
-                                        "branch close to its own (seen in T on a rod pressed on a wall): a "
-                                        "second trace with other steps shows which" if self.crossings else "")),
+                                     + "; or the trace went on along another branch close to its own (seen "
+                                       "in T on a rod pressed on a wall, past a branch point): a second trace "
+                                       "with other steps shows which"),
                                   RuntimeWarning, stacklevel=2)
                 self.ref, self.crossings = (n, float(pt.p)), 0
             self.last, self.since = n, 0
