@@ -581,3 +581,9 @@ def test_store_every_thins_the_file_and_the_branch_in_memory_alike(tmp_path):
         np.testing.assert_array_equal(x[np.isfinite(x)], thin.coefficients[i])
     with pytest.raises(ValueError, match="no stored solution .*store_every"):
         branch_spectra(thin)
+    # without a file the branch is thinned alike, and a bad value is refused there too
+    alone = rodcont.trace(1.0, stretch_max=0.5, store_every=5)
+    assert [i for i in range(n) if alone.coefficients[i].size] == kept
+    for bad, error in ((0, ValueError), (2.5, TypeError), ("5", TypeError)):
+        with pytest.raises(error, match="store_every"):
+            rodcont.trace(1.0, stretch_max=0.5, store_every=bad)

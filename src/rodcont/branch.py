@@ -81,13 +81,13 @@ class Branch:
         return len(self.coefficients) - 1
 
     def thin(self, i: int, every: int) -> None:
-        """Drop point ``i``'s solution unless a file with ``store_every = every`` keeps it
-        (as :meth:`rodcont.branchfile.BranchWriter.add_point` does): every ``every``-th point's and the special points'.
-        Its tangent is kept at special points only. Dropped arrays become empty."""
-        special = str(self.table["kind"][i]) not in ("regular", "forced")
-        if not (special or i % every == 0):
+        """Drop what a file with ``store_every = every`` does not keep of point ``i`` (not the last point):
+        :func:`rodcont.branchfile.kept`. Dropped arrays become empty."""
+        from .branchfile import kept
+        solution, tangent = kept(i, self.table["kind"][i], every)
+        if not solution:
             self.coefficients[i] = np.empty(0)
-        if not special:
+        if not tangent:
             self.tangents[i] = np.empty(0)
 
     def column(self, name: str) -> np.ndarray:

@@ -82,6 +82,19 @@ SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "de
 FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located",
                "unstable_before", "unstable_after")
 MAGIC = b"RODCONT-BRANCH-FILE\x00"
+
+
+def kept(i: int, kind: str, store_every: int) -> tuple[bool, bool]:
+    """Whether point ``i`` of a branch thinned with ``store_every`` keeps its solution and its tangent.
+
+    Solutions: every ``store_every``-th point's and those of the folds, branch points, starts and ends
+    (events); tangents: the special points' only (a restart elsewhere starts along the parameter). The
+    last point keeps both whatever its index (the writer and :class:`rodcont.branch.Branch` see to it).
+    """
+    if store_every <= 1:
+        return True, True
+    special = str(kind) not in ("regular", "forced")
+    return special or i % store_every == 0, special
 HEADER = 512
 
 
@@ -275,18 +288,14 @@ class _Group:
         """Queue one point; :meth:`drain` writes the queue (one resize and one write per dataset:
         per-point writes into HDF5 cost more than the continuation step that made the point)."""
         i = self.n
-        # a thinned file keeps the solutions of its folds, branch points, starts and ends (events)
-        special = str(kind) not in ("regular", "forced")
-        store = self.store_every <= 1 or i % self.store_every == 0 or special
+        store, store_tangent = kept(i, kind, self.store_every)
         x, tangent = np.array(x, dtype=float), np.array(tangent, dtype=float)
         self._queue.append(dict(
             scalars=[float(row[name]) for name in self.columns],
             helical_waves=int(row["helical_waves"]), located=int(bool(located)),
             unstable_modes=int(row.get("unstable_modes", -1)), kind=str(kind),
             coefficients=x, tangent=tangent, breakpoints=np.array(breakpoints, dtype=float),
-            # a thinned file keeps tangents at its special points only (a restart elsewhere
-            # starts along the parameter)
-            keep=dict(coefficients=store, tangent=store and (special or self.store_every <= 1), breakpoints=True)))
+            keep=dict(coefficients=store, tangent=store_tangent, breakpoints=True)))
         self._pending = None if store else (i, x, tangent)
         self.n += 1
 

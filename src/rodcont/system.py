@@ -133,17 +133,14 @@ class RodSystem:
         return sx, sp
 
     def relative_change(self, x0, x1) -> float:
-        """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size (B-spline
-        coefficients, max norm; sizes below 1e-12 L count as 1e-12 L). A deflection that doubles
+        """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size
+        (:meth:`relative_correction` with the predictor at the step's start). A deflection that doubles
         reads 0.5; one that flips sign reads 2. Only for traces in ``phi_L`` (where a nearly
         symmetric rod passes close to other branches); other parameters, such as the weight
         homotopy that grows a deflection from zero, read 0."""
         if self.param != "phi_L":
             return 0.0
-        idx = self._transverse
-        a, b = x0[idx], x1[idx]
-        size = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-12 * self.rod.L)
-        return float(np.max(np.abs(b - a))) / size
+        return self.relative_correction(x0, x0, x1)
 
     def relative_correction(self, x0, x_pred, x1) -> float:
         """How far the corrector moved the predictor's transverse deflection, relative to the deflection's

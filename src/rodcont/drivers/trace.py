@@ -833,18 +833,18 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
                 raise TraceError(str(exc)) from None
     branch = Branch(gamma=rod.gamma(T) if rod.w > 0 else math.nan, rod=rod, N=N, k=k, param=param)
     writer = group = None
+    store_every = check_number("store_every", store_every, integer=True)
+    if store_every < 1:
+        raise ValueError(f"store_every must be >= 1, got {store_every}")
     if out is not None:
         from ..branchfile import BranchWriter, check_output
         check_output(out, overwrite=overwrite)
-        store_every = check_number("store_every", store_every, integer=True)
-        if store_every < 1:
-            raise ValueError(f"store_every must be >= 1, got {store_every}")
         writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta), store_every=store_every)
         group = writer.group("/", extra_columns=((param,) if param != "phi_L" else ())
                              + (CONTACT_COLUMNS if wall is not None else ()))
         _mesh_group(writer, system)
     contact = _ContactRows(system) if writer is not None and wall is not None else None
-    recorder = Recorder(branch, writer, group, contact, thin=store_every if writer is not None else 1)
+    recorder = Recorder(branch, writer, group, contact, thin=store_every)
     try:
         with np.errstate(all="ignore"):
             run(system, x0, p0, opts, tangent0=tangent0, exact=exact, branch=branch, recorder=recorder,
