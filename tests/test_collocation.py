@@ -815,3 +815,129 @@ def test_affine_bc_declaration_contradicted_by_the_probes_is_refused():
     with pytest.raises(ValueError, match="affine"):
         Collocation(dataclasses.replace(NONLINEAR, bc=bc, affine_bc=True), 3, 3)
     Collocation(dataclasses.replace(NONLINEAR, bc=_affine_bc, affine_bc=True), 3, 3)
+
+
+# ==========================================================================
+# Integral conditions (AUTO's NINT)
+# ==========================================================================
+def _int_nl(S, z, p):
+    """Two integrands, nonlinear in the jets of both fields, in S and in every parameter."""
+    u, du, ddu, _, v, dv = z
+    return np.array([u * v ** 2 + p[0] * np.sin(du) - S * p[1] * np.exp(v) + p[2] ** 2,
+                     ddu * dv + np.cos(u * p[1]) - S ** 2 * p[0] * p[2]])
+
+
+# the nonlinear system with two integral conditions in place of one boundary condition and a second free
+# parameter (4 boundary + 2 integral = 4 orders + 2 free)
+NONLINEAR_INT = BVProblem(orders=[3, 1], residual=_nl_residual, bc=lambda za, zb, p: _nl_bc(za, zb, p)[:4],
+                          interval=(0.0, 1.0), params=["a", "b", "c"], free=[1, 2], integrals=_int_nl)
+
+
+def _join_int_problem(integral_dependence=None):
+    """``p0 u'' + u^2 + p2 u = S`` on ``[0, 1]``, a C^0 join at 0.4 with ``u'(0.4-) = p1 u'(0.4+)``, ``u(0) = 0``,
+    ``u(1) = 1``, ``p1 = p0``, and ``int (u^2 + p2 u' - S p0) dS = 0`` fixing the free ``p2``."""
+    def residual(S, z, p):
+        return (p[0] * z[2] + z[0] ** 2 + p[2] * z[0] - S)[None]
+
+    def bc(za, zb, p):
+        return np.stack([za[0], zb[0] - 1.0, p[1] - p[0] + 0 * za[0]])
+
+    def interface(zl, zr, p, S):
+        return (zl[1] - p[1] * zr[1])[None]
+
+    def integrals(S, z, p):
+        return (z[0] ** 2 + p[2] * z[1] - S * p[0])[None]
+
+    return BVProblem(orders=(2,), residual=residual, bc=bc, interval=(0.0, 1.0), params=("a", "ratio", "c"),
+                     free=(1, 2), joins=(0.4,), join_continuity=(0,), interface=interface, integrals=integrals,
+                     integral_dependence=integral_dependence)
+
+
+@pytest.mark.parametrize("case", ["mixed-3-1", "join"])
+def test_integral_condition_jacobian_matches_central_differences(case):
+    """The dense integral rows (jets, free parameters) and dF/dp_0 against central differences, with a
+    join too; the rows come last in the row order."""
+    from conftest import assert_tangent_matches_differences
+    if case == "join":
+        c, p = Collocation(_join_int_problem(), np.array([0.0, 0.2, 0.4, 0.7, 1.0]), 3), np.array([1.7, 0.0, 0.0])
+        assert c.n_interface == 1 and c.n_int == 1 and c.n_bc == 3
+    else:
+        c, p = Collocation(NONLINEAR_INT, 3, 3), np.array([0.7, 1.3, 123.0])
+        assert c.n_int == 2 and c.n_bc == 4
+    x = 0.3 * np.random.default_rng(5).normal(size=c.size)
+    assert_tangent_matches_differences(c, x, p, 1e-6)
+    natural = np.arange(c.size - c.n_int, c.size)
+    assert set(c.row_order[-c.n_int:]) == set(natural)
+    J = c.jacobian(x, p).toarray()
+    assert np.all(J[-c.n_int:, :c.size - c.n_free] != 0)  # dense rows: every coefficient enters the integrals
+
+
+def test_integral_dependence_declaration_gives_the_same_jacobian():
+    """Declaring the components an integrand reads (u, u') gives the Jacobian of declaring all of them."""
+    b = np.array([0.0, 0.2, 0.4, 0.7, 1.0])
+    full, lean = Collocation(_join_int_problem(), b, 4), Collocation(_join_int_problem([0, 1]), b, 4)
+    x, p = np.random.default_rng(2).normal(size=full.size), np.array([1.7, 0.0, 0.0])
+    assert lean.int_active.tolist() == [0, 1]
+    np.testing.assert_array_equal(full.jacobian(x, p).toarray(), lean.jacobian(x, p).toarray())
+
+
+# u'' + u = lam, u(0) = u(1) = 0, int_0^1 u dS = 1 with lam free:
+# u = lam (1 - cos S - (1 - cos 1) / sin 1 sin S), so int u = lam (1 - sin 1 - (1 - cos 1)^2 / sin 1) = 1
+LAM_INT = 1.0 / (1.0 - np.sin(1.0) - (1.0 - np.cos(1.0)) ** 2 / np.sin(1.0))
+
+
+def _u_int(S):
+    return LAM_INT * (1.0 - np.cos(S) - (1.0 - np.cos(1.0)) / np.sin(1.0) * np.sin(S))
+
+
+def _int_linear_problem(joins=()):
+    return BVProblem(orders=[2], residual=lambda S, z, p: np.array([z[2] + z[0] - p[0]]),
+                     bc=lambda za, zb, p: np.array([za[0], zb[0]]), interval=(0.0, 1.0), params=["lam"], free=[0],
+                     integrals=lambda S, z, p: np.array([z[0] - 1.0]),
+                     joins=joins, join_continuity=(0,) if joins else None,
+                     interface=(lambda zl, zr, p, S: (zl[1] - zr[1])[None]) if joins else None)
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_integral_condition_solves_to_the_closed_form_at_the_collocation_order(k):
+    """The free lam of an integral condition converges at the superconvergent O(h^2k) of a functional, the
+    solution uniformly at O(h^(k+2)); with a C^0 join (u' continuity as its interface condition) the same."""
+    meshes = {2: [2, 4, 8, 16], 3: [2, 4], 4: [1, 2]}[k]  # errors above 1e-12, in the asymptotic range
+    S = np.linspace(0.0, 1.0, 1001)
+    for joins in ((), (0.5,)):
+        el, eu = [], []
+        for N in meshes:
+            c = Collocation(_int_linear_problem(joins), 2 * N, k)
+            r = c.newton(np.zeros(c.size), np.array([-1e3]))  # the free entry of p is ignored
+            assert r.converged and r.iterations <= 2, r.message
+            el.append(abs(r.x[c.free_index][0] - LAM_INT))
+            eu.append(np.max(np.abs(c.evaluate(r.x, S, 0) - _u_int(S))))
+        ql, qu = observed_orders(el), observed_orders(eu)
+        assert np.all(ql >= 2 * k - 0.3) and np.all(ql <= 2 * k + 0.5), (joins, el, ql)
+        assert np.all(qu >= k + 2 - 0.3), (joins, eu, qu)
+        assert el[-1] < 1e-7 * abs(LAM_INT)
+
+
+def test_integral_condition_count_errors():
+    res = lambda S, z, p: np.array([z[2] + z[0] - p[0]])
+    two = lambda za, zb, p: np.array([za[0], zb[0]])
+    one_int = lambda S, z, p: np.array([z[0] - 1.0])
+    # 2 orders + 1 free = 3 conditions: 2 boundary + 1 integral; 3 boundary conditions are one too many
+    pb = BVProblem([2], res, lambda za, zb, p: np.array([za[0], zb[0], za[1]]), (0.0, 1.0), params=["lam"],
+                   free=[0], integrals=one_int)
+    with pytest.raises(ValueError, match=r"bc must return 2 conditions \(sum of orders \+ free parameters - 1 "
+                                         r"integral condition\), got 3"):
+        Collocation(pb, 4, 3)
+    # without the free parameter there is no room for the integral condition beside two boundary conditions
+    pb = BVProblem([2], res, two, (0.0, 1.0), params=["lam"], integrals=one_int)
+    with pytest.raises(ValueError, match=r"bc must return 1 conditions .* - 1 integral condition\), got 2"):
+        Collocation(pb, 4, 3)
+    # more integral conditions than the orders and free parameters allow
+    pb = BVProblem([2], res, two, (0.0, 1.0), params=["lam"], free=[0],
+                   integrals=lambda S, z, p: np.array([z[0], z[1], z[2], z[0] * z[1]]))
+    with pytest.raises(ValueError, match=r"4 integral conditions, but .* allow 3 conditions in all"):
+        Collocation(pb, 4, 3)
+    # an integrand of the wrong shape
+    pb = BVProblem([2], res, two, (0.0, 1.0), params=["lam"], free=[0], integrals=lambda S, z, p: z[0] - 1.0)
+    with pytest.raises(ValueError, match=r"integrals must return an array \(number of integral conditions"):
+        Collocation(pb, 4, 3)

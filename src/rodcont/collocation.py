@@ -108,6 +108,11 @@ class BVProblem:
     parameters, so their derivatives are constant: computed once per
     discretisation instead of at every linearisation (a wrong declaration
     gives a wrong Jacobian).
+    ``integrals`` (optional): ``integrals(S, z, p) -> (n_int, npts)``, the
+    integrands of the conditions ``int_a^b q_j(S, z(S), p) dS = 0`` (module
+    docstring); analytic operations only. With them ``bc`` returns
+    ``sum(m_i) + len(free) - n_int`` conditions. ``integral_dependence``: the
+    jet components the integrands depend on (default: all).
     """
 
     orders: Sequence[int]
@@ -124,6 +129,8 @@ class BVProblem:
     joins: Sequence[float] = ()
     join_continuity: Sequence[int] | None = None
     interface: Callable | None = None
+    integrals: Callable | None = None
+    integral_dependence: Sequence[int] | None = None
 
     @property
     def n_fields(self) -> int:
@@ -185,10 +192,17 @@ class Collocation:
         self.npts = npts = self.S.size
         n, nz = pb.n_fields, pb.jet_size
         self.jet_rows = np.concatenate([[0], np.cumsum([m + 1 for m in pb.orders])])
-        self.n_bc = self.size - n * npts - self.n_interface
+        self.n_int = self._count_integrals()
+        self.n_bc = self.size - n * npts - self.n_interface - self.n_int
         if self.n_bc < 0:
+            if self.n_int:
+                raise ValueError(f"{self.n_int} integral conditions, but the orders and the free parameters "
+                                 f"allow {self.n_bc + self.n_int} conditions in all (boundary + integral = "
+                                 f"sum of orders + free parameters): free one parameter per extra condition")
             raise ValueError("more collocation equations than unknowns")
         self.active = np.arange(nz) if pb.jet_dependence is None else np.unique(np.asarray(pb.jet_dependence, int))
+        self.int_active = (np.arange(nz) if pb.integral_dependence is None
+                           else np.unique(np.asarray(pb.integral_dependence, int)))
         npar = max(len(pb.params), 1)
         self.param_in_residual = np.ones(npar, bool)
         if pb.residual_params is not None:
@@ -219,6 +233,8 @@ class Collocation:
             cols[:, wstart[i]:wstart[i + 1]] = self.index[i][first[:, None] + np.arange(k + m)[None, :]]
         self._local_cols_all = cols
         self._local_active = np.ascontiguousarray(L[:, self.active, :])
+        # the integral rows: Gauss weight times the bases of the integrands' components
+        self._local_integral = np.ascontiguousarray(L[:, self.int_active, :] * self.weights[:, None, None])
         # Jets at the collocation points: z = E @ x (row j * npts + q).
         rows = (np.arange(nz)[None, :, None] * npts + np.arange(npts)[:, None, None]) * np.ones((1, 1, wstart[-1]), int)
         mask = L != 0
@@ -339,6 +355,53 @@ class Collocation:
         dx = np.matmul(dl, self.iface_EL) + np.matmul(dr, self.iface_ER)  # (nj, per, width)
         return h[:, :, 0].real.T.ravel(), dx
 
+    # ---- integral conditions ---------------------------------------------------
+    def _count_integrals(self) -> int:
+        """``n_int``: the integrands' count, from one evaluation at unit jets (it is structural)."""
+        pb = self.problem
+        if pb.integrals is None:
+            return 0
+        with np.errstate(all="ignore"):
+            q = np.asarray(pb.integrals(self.S, np.ones((pb.jet_size, self.npts)), np.ones(max(len(pb.params), 1))))
+        if q.ndim != 2 or q.shape[1] != self.npts or q.shape[0] < 1:
+            raise ValueError(f"integrals must return an array (number of integral conditions, number of points), "
+                             f"got shape {q.shape} at {self.npts} points")
+        return int(q.shape[0])
+
+    def _integrands(self, S, z, p) -> np.ndarray:
+        q = np.asarray(self.problem.integrals(S, z, p))
+        if q.shape != (self.n_int, S.size):
+            raise ValueError(f"integrals must return {self.n_int} integrands at each of the {S.size} points, "
+                             f"got shape {q.shape}")
+        return q
+
+    def _integral_residual(self, x: np.ndarray, pf: np.ndarray) -> np.ndarray:
+        """``I_j = sum_q w_q q_j(S_q, z_q, p)`` (natural order)."""
+        if not self.n_int:
+            return np.zeros(0)
+        return self._integrands(self.S, self.jets(x), pf) @ self.weights
+
+    def _integral_dp(self, z: np.ndarray, pc: np.ndarray) -> np.ndarray:
+        """``dI/dp_j`` from the integrands at the complex-stepped parameters ``pc``."""
+        if not self.n_int:
+            return np.zeros(0)
+        return (self._integrands(self.S, z.astype(complex), pc).imag / COMPLEX_STEP) @ self.weights
+
+    def _integral_jacobian(self, z: np.ndarray, pf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``I`` and ``dI/dc`` as dense ``(n_int, size)`` rows (the free-parameter columns left zero):
+        one complex-step call over all points and the declared components."""
+        q, dq = self._complex_step(self._integrands, self.S, z, pf, self.int_active, self.n_int)
+        contrib = np.einsum("jaq,qac->jqc", dq, self._local_integral)  # (n_int, npts, width)
+        flat = (np.arange(self.n_int)[:, None, None] * self.size + self._local_cols_all[None]).ravel()
+        rows = np.bincount(flat, weights=contrib.ravel(), minlength=self.n_int * self.size)
+        return q @ self.weights, rows.reshape(self.n_int, self.size)
+
+    def _bc_count_message(self) -> str:
+        what = "sum of orders + free parameters"
+        if self.n_int:
+            what += f" - {self.n_int} integral condition{'s' if self.n_int > 1 else ''}"
+        return f"bc must return {self.n_bc} conditions ({what})"
+
     def _check_bc_count(self) -> None:
         """The number of boundary conditions is structural: check it once, at unit jets.
 
@@ -410,9 +473,14 @@ class Collocation:
             for j in self.free_index:
                 rows.append(n * npts + self.n_bc + np.arange(self.n_interface))
                 cols.append(np.full(self.n_interface, j))
+        first_integral = self.size - self.n_int
+        if self.n_int:  # dense rows over every column
+            rows.append(np.repeat(np.arange(first_integral, self.size), self.size))
+            cols.append(np.tile(np.arange(self.size), self.n_int))
         rows, cols = np.concatenate(rows), np.concatenate(cols)
-        # Order the conditions along the span: each row by the mean of its columns.
+        # Order the conditions along the span: each row by the mean of its columns; the integral rows last
         centre = np.bincount(rows, weights=cols, minlength=self.size) / np.maximum(np.bincount(rows, minlength=self.size), 1)
+        centre[first_integral:] = self.size + np.arange(self.n_int)
         self.row_order = np.argsort(centre, kind="stable")  # F = F_natural[row_order]
         rank = np.empty_like(self.row_order)
         rank[self.row_order] = np.arange(self.size)
@@ -439,7 +507,7 @@ class Collocation:
         where the complex step would silently return finite values; ``G`` is
         then NaN, as the real residual is.
         """
-        nz, npts, na = z.shape[0], z.shape[1], len(active)
+        npts, na = z.shape[1], len(active)
         if self.problem.jacobian is not None and active is self.active:
             G, dG = self.problem.jacobian(S, z, p)
             n = self.problem.n_fields
@@ -447,17 +515,22 @@ class Collocation:
                 raise ValueError(f"the jacobian must return G of shape {(n, npts)} and dG of shape {(n, na, npts)}, "
                                  f"got {np.shape(G)} and {np.shape(dG)}")
             return G, dG
+        return self._complex_step(self.problem.residual, S, z, p, active, self.problem.n_fields)
+
+    def _complex_step(self, fun, S, z, p, active, n):
+        """``fun(S, z, p) -> (n, npts)`` and its derivatives ``(n, len(active), npts)`` with respect to the
+        jet components ``active``: one call on ``len(active) + 1`` copies of the points (copy 0 unperturbed)."""
+        nz, npts, na = z.shape[0], z.shape[1], len(active)
         nb = na + 1
         if npts > POINT_BLOCK:
             # long rods: blocks of points keep the complex batch (and the residual's temporaries) in cache;
             # one call for everything allocated hundreds of MB and spent a third of the time in the kernel
-            parts = [self._pointwise_jacobian(S[i:i + POINT_BLOCK], z[:, i:i + POINT_BLOCK], p, active)
+            parts = [self._complex_step(fun, S[i:i + POINT_BLOCK], z[:, i:i + POINT_BLOCK], p, active, n)
                      for i in range(0, npts, POINT_BLOCK)]
             return np.concatenate([a for a, _ in parts], axis=1), np.concatenate([b for _, b in parts], axis=2)
         Zc = np.tile(z.astype(complex), (1, nb))
         Zc.reshape(nz, nb, npts)[active, np.arange(1, nb), :] += 1j * COMPLEX_STEP
-        Gc = np.asarray(self.problem.residual(np.tile(S, nb), Zc, p))
-        n = self.problem.n_fields
+        Gc = np.asarray(fun(np.tile(S, nb), Zc, p))
         if Gc.size != n * npts * nb:
             raise ValueError(f"the residual must return {n} equations (one per field) at each point, "
                              f"got an array of shape {Gc.shape}")
@@ -473,8 +546,7 @@ class Collocation:
         Zab = np.concatenate([np.concatenate([za, zb]).astype(complex)[:, None], Zab], axis=1)
         g = np.asarray(self.problem.bc(Zab[:nz], Zab[nz:], p))
         if g.shape != (self.n_bc, 2 * nz + 1):
-            raise ValueError(f"bc must return {self.n_bc} conditions (sum of orders + free parameters), "
-                             f"got {g.shape[0] if g.ndim else 1}")
+            raise ValueError(f"{self._bc_count_message()}, got {g.shape[0] if g.ndim else 1}")
         return g[:, 0].real, g[:, 1:].imag / COMPLEX_STEP
 
     # ---- evaluation --------------------------------------------------------
@@ -500,14 +572,13 @@ class Collocation:
                              f"at each point, got an array of shape {G.shape}")
         G = G.reshape(-1, self.npts)
         za, zb = self.end_jets(x)
-        return np.concatenate([G.T.ravel(), self._bc_values(za, zb, pf),
-                               self._interface_residual(x, pf)])[self.row_order]
+        return np.concatenate([G.T.ravel(), self._bc_values(za, zb, pf), self._interface_residual(x, pf),
+                               self._integral_residual(x, pf)])[self.row_order]
 
     def _bc_values(self, za, zb, p) -> np.ndarray:
         g = np.atleast_1d(self.problem.bc(za, zb, p))
         if g.shape != (self.n_bc,):
-            raise ValueError(f"bc must return {self.n_bc} conditions (sum of orders + free parameters), "
-                             f"got {g.shape[0] if g.ndim else 1}")
+            raise ValueError(f"{self._bc_count_message()}, got {g.shape[0] if g.ndim else 1}")
         return g
 
     def linearise(self, x: np.ndarray, p: np.ndarray, dparams: Sequence[int] = ()):
@@ -539,7 +610,7 @@ class Collocation:
                 dgj = np.atleast_1d(pb.bc(za.astype(complex), zb.astype(complex), pc)).imag / COMPLEX_STEP
                 if affine:
                     self._bc_dp[j] = dgj
-            dFp.append(np.concatenate([dGj.T.ravel(), dgj, self._interface_dp(x, pc)]))
+            dFp.append(np.concatenate([dGj.T.ravel(), dgj, self._interface_dp(x, pc), self._integral_dp(z, pc)]))
         for j in range(len(free)):
             data.append(dFp[j][: n * npts])
         if affine:
@@ -560,15 +631,21 @@ class Collocation:
             if pb.affine_bc:
                 self._bc_block = data[-1]
                 self._bc_dp = dict(zip(want, (v[n * npts:n * npts + self.n_bc] for v in dFp)))
-        h = np.zeros(0)
+        h = q = np.zeros(0)
+        first_integral = self.size - self.n_int
         if self.n_interface:
             h, dh = self._interface_jacobian(x, pf)
             data.append(dh.ravel())
-            data += [dFp[j][n * npts + self.n_bc:] for j in range(len(free))]
+            data += [dFp[j][n * npts + self.n_bc:first_integral] for j in range(len(free))]
+        if self.n_int:
+            q, dq = self._integral_jacobian(z, pf)
+            for j in range(len(free)):
+                dq[:, self.free_index[j]] += dFp[j][first_integral:]
+            data.append(dq.ravel())
         csc = np.empty(self.nnz)
         csc[self._slot] = np.concatenate(data)
         J = csc_with_data(self._J_template, csc)
-        F = np.concatenate([G.T.ravel(), g, h])[self.row_order]
+        F = np.concatenate([G.T.ravel(), g, h, q])[self.row_order]
         return F, J, [v[self.row_order] for v in dFp[len(free):]]
 
     def jacobian(self, x: np.ndarray, p: np.ndarray) -> sp.csc_matrix:
