@@ -280,6 +280,13 @@ def section_dask(quick):
     print(f"speed-up on 2 workers: {times[1] / times[2]:.2f} (2 cores, shared)")
 
 
+def section_bordered(quick):
+    print("\n## 8. Bordered solve: finite-difference Bratu through its fold, n = 2000 .. 20000, and the rod's fold")
+    args = [sys.executable, os.path.join(HERE, "bordered_fd.py"), "--rod"] + (["--quick"] if quick else [])
+    out = subprocess.run(args, env=ENV, capture_output=True, text=True)
+    print(out.stdout.rstrip() if out.returncode == 0 else f"bordered_fd.py failed: {out.stderr.strip()[-400:]}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
@@ -289,7 +296,7 @@ def main():
           f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, "
           f"load average {os.getloadavg()[0]:.2f}")
     sections = dict(floor=section_floor, branch=section_branch, accuracy=section_accuracy, long=section_long,
-                    diagram=section_diagram, well=section_well, dask=section_dask)
+                    diagram=section_diagram, well=section_well, dask=section_dask, bordered=section_bordered)
     for name, fn in sections.items():
         if args.only and name not in args.only:
             continue
