@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from rodcont.branch import Branch
-from rodcont.continuation import ContinuationSettings, Event, continuation
+from rodcont.continuation import ContinuationSettings, Event, Tracker
 from rodcont.drivers.trace import trace
 from rodcont.rod import RodParameters
 from rodcont.stability import (branch_spectra, branch_unstable_modes, exchange_of_stability, fold_indices,
@@ -161,6 +161,47 @@ def test_weightless_straight_rod_under_compression():
 
 
 # --------------------------------------------------------------------------
+# Units
+# --------------------------------------------------------------------------
+UNITS = [(10.0, 1.0), (1e-3, 1.0), (1e3, 1e6), (1e-3, 1e-6), (1e-3, 1e6), (1e3, 1e-6), (0.37, 2.9e4)]
+
+
+@pytest.fixture(scope="module")
+def seed_branch():
+    """Issue 22's case: the Gamma = 1 branch from the near-straight rod at Phi = 25.778 (4 unstable modes,
+    a fold, 5)."""
+    import rodcont
+    return rodcont.trace(1.0, from_straight=25.778)
+
+
+def test_counts_do_not_depend_on_the_units(seed_branch):
+    """Lengths x a and forces x b (the solution mapped exactly, test_units.in_units): the same eigenvalues
+    (lambda is in units of EI/(rho A L^4)) and the same counts. Before, at and after the seed branch's fold,
+    at its last point (its finest mesh) and on the weightless straight rod at Phi = 40 (8 unstable modes).
+    The code before counted 0 instead of 4 with lengths x 10 (its mesh cap (pi/h)^4 was in 1/length^4) and
+    moved eigenvalues by up to 2e-3 of their size in other units (J - s0 B factorised as it came)."""
+    from test_units import in_units
+    br = seed_branch
+    (fold,) = [i for i, k in enumerate(br.table["kind"]) if k == "fold"]
+    cases = []
+    for i, expected in ((fold - 2, (4, 0)), (fold, (4, 1)), (fold + 2, (5, 0)), (len(br) - 1, (5, 0))):
+        cases.append((RodSystem(br.rod, gamma=1.0, breakpoints=br.meshes[i]), br.coefficients[i],
+                       float(br.table["phi_L"][i]), expected))
+    straight = RodSystem(RodParameters(w=0.0), T=10.0, N=30)
+    cases.append((straight, straight.straight_state(40.0), 40.0, (8, 0)))
+    assert cases[-2][0].disc.N > 100
+    for s, x, phi, expected in cases:
+        ref = spectrum(s, x, phi)
+        assert (ref.unstable, ref.null) == expected
+        near = ref.nearest[:6]
+        for a, b in UNITS:
+            s2, y = in_units(s, x, a, b)
+            sp = spectrum(s2, y, phi)
+            assert (sp.unstable, sp.null) == expected, (phi, a, b)
+            assert np.allclose(sp.nearest[:6], near, rtol=1e-6, atol=1e-6), (phi, a, b)
+
+
+# --------------------------------------------------------------------------
 # Conservative or not
 # --------------------------------------------------------------------------
 @pytest.fixture(scope="module")
@@ -172,8 +213,8 @@ def sleeve_branch():
     s = sleeve_system(rod, T, N=30)
     x0 = s.disc.newton(s.model.initial_guess(s.disc, T), s.params(0.0)).x
     resolved = Event("resolved", lambda pt: 1e-4 - pt.data["defect"], stop=True)
-    pts, _ = continuation(s, x0, 0.0, ContinuationSettings(ds=0.1, ds_max=0.3, max_steps=200, p_min=-1.0),
-                          monitor=s.outputs, events=[resolved])
+    pts = list(Tracker(s, x0, 0.0, ContinuationSettings(ds=0.1, ds_max=0.3, max_steps=200, p_min=-1.0),
+                       monitor=s.outputs, events=[resolved]))
     br = Branch(gamma=1.0, rod=rod, N=30, k=5)
     for pt in pts:
         br.add(pt, s.disc.breakpoints)

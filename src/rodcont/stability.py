@@ -82,13 +82,27 @@ nearest-``k`` rule without that bound is not safe: in the loop at the end of
 Gamma = 0 a dozen soft modes crowd the origin and the unstable eigenvalue
 (33) lies beyond the 8 nearest. ``s0 = -0.618`` rather than 0: at a fold
 ``J`` is singular and a zero shift pollutes the other eigenvalues (a spurious
-complex pair appears); if an eigenvalue falls within 1e-6 of the shift
-another shift is used. Eigenvalues beyond ``cap = min((pi/h_min)^4, 100
+complex pair appears); if an eigenvalue falls within 1e-6 |s0| of the shift
+another shift is used. Eigenvalues beyond ``cap = min((pi L/h_min)^4, 100
 reach)`` are modes the mesh cannot resolve or rounding artefacts (a few near
-1e13-1e17) and are not counted. Cost at ``N = 15`` on the project machine:
-about 0.6 ms for the Jacobian and 2-5 ms for the rest (``dense``: 6 ms).
+1e13-1e17) and are not counted. ``J - s0 B`` is factorised in the problem's
+own units (:func:`_equilibrated`: the unknowns divided by their scales, each
+row by its largest entry). Cost at ``N = 15`` on the project machine: about
+0.6 ms for the Jacobian and 2-5 ms for the rest (``dense``: 6 ms).
 
-Zero eigenvalues. ``|lambda| <= tol`` (default ``1e-4``, against ``-500.6``
+Units. Every number above is in the problem's own scales, so that the counts
+and the eigenvalues are the same in any consistent units (lengths x a,
+forces x b: tests/test_units.py, test_counts_do_not_depend_on_the_units):
+eigenvalues (``tol``, ``s0``, ``cap``, ``reach``, the flutter test) in units
+of ``EI / (rho A L^4)``, i.e. pure numbers with ``rho A = EI / L^4``;
+lengths (the mesh size in the cap, the deflection unknowns) by the span
+``L``; curvatures by ``1/L``; forces (the force unknowns, the reach's
+``|F|``, the tension step of :func:`reciprocity_ratio`) by ``EI / L^2``;
+torques by ``EI / L``. (The mesh cap was once ``(pi/h_min)^4``, in
+1/length^4: with lengths x 10 it fell below the unstable eigenvalues and the
+seed branch of Gamma = 1 read 0 unstable modes instead of 4.)
+
+Zero eigenvalues. ``|lambda| <= tol`` (default ``1e-4`` EI/(rho A L^4), against ``-500.6``
 for the first mode of the unloaded beam) is *null* and not counted as
 unstable: at a located fold (``|lambda| ~ 1e-7``) the count is the smaller of
 the two sides, i.e. the strictly unstable modes (a fold bracketed but not
@@ -182,7 +196,7 @@ import scipy.sparse.linalg as spla
 from .rod import Jet
 
 NULL_TOL = 1e-4          # |lambda| below this (units EI / (rho A L^4)) is a null eigenvalue
-SHIFT = -0.6180339887    # default shift of the reduced eigenproblem
+SHIFT = -0.6180339887    # default shift of the reduced eigenproblem (units EI / (rho A L^4))
 DENSE_MIN = 60           # 'auto' uses the dense reduced problem up to this size (2 n_pts), ARPACK above
 
 
@@ -245,7 +259,7 @@ def _static_parts(disc):
         c = dict(D1p=rows(Jet.D1[1]), D2p=rows(Jet.D2[1]), PHI=rows(Jet.PHI[0]),
                  W2=sp.vstack([rows(Jet.D1[0]), rows(Jet.D2[0])], format="csr"),
                  rank=rank, q=q, row=lambda i: rank[q * disc.problem.n_fields + i],
-                 mesh_cap=(math.pi / float(np.min(np.diff(disc.breakpoints)))) ** 4)
+                 h_min=float(np.min(np.diff(disc.breakpoints))))
         _CACHE[disc] = c
     return c
 
@@ -341,19 +355,21 @@ def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "a
         method = "dense" if r <= DENSE_MIN else "arnoldi"
     cap, reach = _cap(system, x, p)
     B = (U @ W).tocsc()
+    d = _unknown_scales(system, p)
     for _ in range(4):
-        lu = spla.splu((J - shift * B).tocsc(), permc_spec="NATURAL")
+        A, Ur, Wc = _equilibrated(J - shift * B, U, W, d)
+        lu = spla.splu(A, permc_spec="NATURAL")
         radius = math.inf
         if method == "arnoldi":
             try:
-                nu, radius = _arnoldi(lu, U, W, k, reach + abs(shift))
+                nu, radius = _arnoldi(lu, Ur, Wc, k, reach + abs(shift))
                 k_used = 0 if nu is None else nu.size
             except spla.ArpackError:
                 nu = None
             if nu is None:           # the disc had to hold most of the spectrum (or ARPACK failed): do them all
                 method = "dense"
         if method == "dense":
-            nu = np.linalg.eigvals(W @ lu.solve(U.toarray()))
+            nu = np.linalg.eigvals(Wc @ lu.solve(Ur.toarray()))
             radius = math.inf
         lam = shift + 1.0 / nu[nu != 0]
         if np.all(np.abs(lam - shift) > 1e-6 * abs(shift)):
@@ -369,6 +385,41 @@ def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "a
                     k=k_used if method == "arnoldi" else 0)
 
 
+def _unknown_scales(system, p) -> np.ndarray:
+    """The problem's own unit of each unknown: ``L`` for ``Delta1, Delta2``, ``1`` for ``phi``,
+    ``EI/L^2`` for ``F`` (and 1 for anything else), ``L`` the span and ``EI`` from ``p``."""
+    disc, L = system.disc, float(system.model.rod.L)
+    d = np.ones(disc.size)
+    for field, unit in ((0, L), (1, L), (3, float(p[3]) / L**2), (4, float(p[3]) / L**2), (5, float(p[3]) / L**2)):
+        d[disc.index[field]] = unit
+    return d
+
+
+def _equilibrated(A, U, W, d):
+    """``(R A D, R U, W D)``: the unknowns in the problem's units (``D = diag(d)``,
+    :func:`_unknown_scales`), then each row divided by its largest entry (``R``), so that
+    ``W D (R A D)^{-1} R U = W A^{-1} U``.
+
+    Why: a change of units multiplies the rows and columns of ``A = J - s0 B`` by powers of the
+    length and force units (force rows by b/a, the torque row by 1/a^2, the force unknowns by
+    b, ...); a factorisation of ``A`` as it comes rounds its small eigenvalues differently in each
+    (a null eigenvalue at a fold, 5e-10 in the paper's units, was 6e-5 with lengths x 1e-3 and forces
+    x 1e-6; the stable -16.92 at the end of that branch moved by 5e-4 with lengths x 1e-3 and forces
+    x 1e6; now both to about 1e-8 of their size). ``R A D`` is the same matrix in any units, to the
+    rounding of its entries (tests/test_units.py)."""
+    A = sp.csc_matrix(A, copy=True)
+    A.data *= np.repeat(d, np.diff(A.indptr))                 # column j times d_j
+    m = np.zeros(A.shape[0])
+    np.maximum.at(m, A.indices, np.abs(A.data))
+    r = 1.0 / np.where(m > 0, m, 1.0)
+    A.data *= r[A.indices]                                    # row i over its largest entry
+    U = sp.csr_matrix(U, copy=True)
+    U.data *= np.repeat(r, np.diff(U.indptr))
+    W = sp.csr_matrix(W, copy=True)
+    W.data *= d[W.indices]
+    return A, U, W
+
+
 def _cap(system, x, p) -> tuple[float, float]:
     """``(cap, reach)``: the largest ``|lambda|`` counted and the bound on unstable eigenvalues.
 
@@ -378,7 +429,8 @@ def _cap(system, x, p) -> tuple[float, float]:
     unstable eigenvalue stays below ``(K L)^4`` (a pure twist gives at most
     ``27/256 (mL/EI)^4``, a pure compression ``(F L^2/EI)^2 / 4``; observed at
     most 1/35 of the bound on the branches of Gamma = 0, 1, 5, the twisted and
-    the compressed straight rods). ``cap = min((pi / h_min)^4, 100 reach)``:
+    the compressed straight rods). ``cap = min((pi L / h_min)^4, 100 reach)`` (``h_min`` the shortest
+    subinterval; the bending eigenvalue ``(k L)^4`` of the shortest wave the mesh holds, ``k = pi/h_min``):
     beyond it are modes the mesh cannot resolve and the few spurious
     eigenvalues rounding puts near ``1e13-1e17``.
     """
@@ -392,7 +444,8 @@ def _cap(system, x, p) -> tuple[float, float]:
     Fmax = float(np.sqrt((z[Jet.F] ** 2).sum(axis=0)).max())
     KL = float(np.abs(m).max()) * L / EI + math.sqrt(Fmax * L * L / EI) + float(kappa.max()) * L + 2 * math.pi
     reach = KL ** 4
-    return min(_static_parts(disc)["mesh_cap"], 100.0 * reach), reach
+    mesh_cap = (math.pi * L / _static_parts(disc)["h_min"]) ** 4
+    return min(mesh_cap, 100.0 * reach), reach
 
 
 def _arnoldi(lu, U, W, k, reach):
@@ -606,7 +659,7 @@ def _fold_change_pencil(v: _View, i: int) -> int:
     s = v.system(b)
     p = _params(s, v.phi[i])
     _, J, (FPhi,) = s.disc.linearise(x, p, [0])
-    phi, psi = _null_vectors(J)
+    phi, psi = _null_vectors(J, _unknown_scales(s, p))
     U, W = inertia_factors(s, x, p)
     tx = v.tangent(i)
     c = float(tx @ phi) if tx.size == phi.size else 1.0
@@ -617,14 +670,15 @@ def _fold_change_pencil(v: _View, i: int) -> int:
     return 1 if lam_dot > 0 else -1
 
 
-def _null_vectors(J):
-    """Right and left null vectors of a (nearly) singular sparse matrix by two steps of inverse iteration."""
+def _null_vectors(J, d):
+    """Right and left null vectors of a (nearly) singular sparse matrix by two steps of inverse
+    iteration, on ``R J D`` (:func:`_equilibrated`: the same in any units)."""
     n = J.shape[0]
-    A = J.tocsc()
+    A, R, _ = _equilibrated(J, sp.identity(n, format="csr"), sp.identity(n, format="csr"), d)
     try:
         lu = spla.splu(A, permc_spec="NATURAL")
     except RuntimeError:
-        lu = spla.splu((A + 1e-12 * sp.identity(n, format="csc") * abs(A).max()).tocsc(), permc_spec="NATURAL")
+        lu = spla.splu((A + 1e-12 * sp.identity(n, format="csc")).tocsc(), permc_spec="NATURAL")
     rng = np.random.default_rng(0)
     a, b = rng.standard_normal(n), rng.standard_normal(n)
     for _ in range(2):
@@ -632,7 +686,7 @@ def _null_vectors(J):
         a /= np.linalg.norm(a)
         b = lu.solve(b, trans="T")
         b /= np.linalg.norm(b)
-    return a, b
+    return d * a, R @ b
 
 
 # --------------------------------------------------------------------------
@@ -672,13 +726,17 @@ def sleeve_system(rod, T: float, N: int = 15, k: int = 5, breakpoints=None):
 def reciprocity_ratio(system, x, phi_L: float, h: float = 1e-6) -> float:
     """``(dm/dT)_Phi / (dl0/dPhi)_T`` at a solution: ``G'(T) = 1 + T/EA`` at every point of a
     conservative problem with potential ``V + G(T) l0`` (Maxwell); anything else says no such
-    potential exists."""
+    potential exists. Central differences along the tangents, of step ``h`` in ``Phi`` and ``h EI/L^2``
+    in ``T`` (the problem's force unit); the tangents solved on ``R J D`` (:func:`_equilibrated`)."""
     p = _params(system, phi_L)
     _, J, (FPhi, FT) = system.disc.linearise(x, p, [0, 1])
-    lu = spla.splu(J.tocsc(), permc_spec="NATURAL")
-    xP, xT = -lu.solve(FPhi), -lu.solve(FT)
+    d = _unknown_scales(system, p)
+    A, R, _ = _equilibrated(J, sp.identity(J.shape[0], format="csr"), sp.identity(J.shape[0], format="csr"), d)
+    lu = spla.splu(A, permc_spec="NATURAL")
+    xP, xT = -d * lu.solve(R @ FPhi), -d * lu.solve(R @ FT)
     out = system.model.output_evaluator(system.disc)
     eP, eT = np.eye(p.size)[0], np.eye(p.size)[1]
-    dm_dT = (out(x + h * xT, p + h * eT)["torque"] - out(x - h * xT, p - h * eT)["torque"]) / (2 * h)
+    hT = h * float(p[3]) / float(system.model.rod.L) ** 2
+    dm_dT = (out(x + hT * xT, p + hT * eT)["torque"] - out(x - hT * xT, p - hT * eT)["torque"]) / (2 * hT)
     dl_dP = (out(x + h * xP, p + h * eP)["l0"] - out(x - h * xP, p - h * eP)["l0"]) / (2 * h)
     return float(dm_dT / dl_dP) if dl_dP != 0 else math.nan  # at Phi = 0 both vanish (l0 is even in Phi)
