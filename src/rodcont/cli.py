@@ -47,7 +47,7 @@ def _number(name, positive=False, nonnegative=False):
 ROD_OPTION_NAMES = ("N", "k", "w", "EI", "GJ", "EA", "L")
 
 # --config FILE.toml: sections and the options their keys set (any trace option goes in [trace])
-CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction", "reference"), "loads": ("gamma", "T", "phi"),
+CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction", "reference"), "loads": ("gamma", "T", "phi", "torque", "l0"),
                    "mesh": ("N", "k", "N_max", "uniform")}
 
 
@@ -340,57 +340,19 @@ def _curve(rod, straight_only: str | None = None, source: str | None = None):
 
 
 def _conduit(path, rod):
-    """``(curve, wall)`` of a ``--conduit FILE`` (TOML, section ``[conduit]``); ``(None, None)`` without one.
-
-    Keys: ``clearance`` (required), ``eps``, ``force_scale``, ``contact_level``
-    (:class:`rodcont.contact.Wall`) and ``reference`` (the conduit's axis,
-    ``KIND[:ARGS]`` as for ``--reference``; a ``well:FILE`` is read relative to
-    the conduit file). Without ``reference`` the axis is ``--reference``.
-    """
+    """``(curve, wall)`` of a ``--conduit FILE`` (:func:`rodcont.contact.load_conduit`); ``(None, None)`` without
+    one. Without a ``reference`` in the file the axis is ``--reference``."""
     if path is None:
         return _curve(rod), None
-    import os
-    import tomllib
-    from .contact import Wall
-    try:
-        with open(path, "rb") as fh:
-            if os.fstat(fh.fileno()).st_size > 1 << 20:
-                raise UserError(f"--conduit {path}: larger than 1 MB: not a conduit file")
-            doc = tomllib.load(fh)
-    except OSError as exc:
-        raise UserError(f"--conduit {path}: cannot read it ({exc.strerror or exc})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise UserError(f"--conduit {path}: not a TOML file ({exc})") from None
-    sec = doc.get("conduit")
-    if not isinstance(sec, dict):
-        raise UserError(f"--conduit {path}: needs a [conduit] section with clearance = C")
-    unknown = sorted(set(sec) - {"clearance", "eps", "force_scale", "contact_level", "reference"})
-    if unknown:
-        raise UserError(f"--conduit {path}: unknown key(s) {', '.join(unknown)} in [conduit] (known: clearance, "
-                        f"eps, force_scale, contact_level, reference)")
-    if "clearance" not in sec:
-        raise UserError(f"--conduit {path}: [conduit] needs clearance = C (conduit radius minus rod radius) "
-                        f"or clearance = [[S0, C0], [S1, C1], ...] (varying linearly between stations S)")
-    try:
-        wall = Wall(**{key: sec[key] for key in ("clearance", "eps", "force_scale", "contact_level") if key in sec})
-    except (TypeError, ValueError) as exc:
-        raise UserError(f"--conduit {path}: {exc}") from None
-    spec = sec.get("reference")
-    if spec is None:
-        return _curve(rod), wall
-    if not isinstance(spec, str):
-        raise UserError(f"--conduit {path}: reference must be a string KIND[:ARGS], got {spec!r}")
-    given = click.get_current_context().meta.get("rodcont.reference", "straight")
-    if given is not None and given.strip() not in ("straight", spec.strip()):
-        raise UserError(f"--conduit {path} gives the reference curve ({spec}): drop --reference {given}")
-    import json
-    source = f"--conduit {path}: reference = {json.dumps(spec, ensure_ascii=False)}"  # as written in the file
-    kind, _, args = spec.strip().partition(":")
-    if kind == "well" and args and not os.path.isabs(args):
-        spec = f"well:{os.path.join(os.path.dirname(os.path.abspath(path)), args)}"
+    from .contact import ConduitError, load_conduit
     ctx = click.get_current_context()
-    ctx.meta["rodcont.reference"] = spec
-    return _curve(rod, source=source), wall
+    given = ctx.meta.get("rodcont.reference", "straight")
+    try:
+        curve, wall = load_conduit(path, rod.L, reference=given)
+    except ConduitError as exc:
+        raise UserError(f"--conduit {exc}") from None
+    # a file without an axis (or naming "straight", which then is --reference's too) leaves --reference's
+    return (_curve(rod) if curve is None else curve), wall
 
 
 def np_errstate():
@@ -569,58 +531,79 @@ def main_group(ctx, debug):
 
 @main_group.command()
 @click.option("--gamma", type=float, default=None, callback=_number("--gamma"), help="tension ratio T / (w L) (or --T)")
-@click.option("--phi", "phi", type=float, required=True, callback=_number("--phi"), help="end rotation Phi [rad]")
+@click.option("--phi", "phi", type=float, default=None, callback=_number("--phi"),
+              help="end rotation Phi [rad] (or --torque)")
+@click.option("--torque", type=float, default=None, callback=_number("--torque"),
+              help="end torque M instead of --phi: Phi becomes an unknown (printed as phi_L)")
+@click.option("--l0", "l0", type=float, default=None, callback=_number("--l0", positive=True),
+              help="unstressed length instead of --gamma/--T: the tension becomes an unknown (printed as T)")
 @click.option("--load-step", type=float, default=0.5, show_default=True, callback=_number("--load-step", positive=True),
-              help="Phi increment of the natural continuation from 0")
+              help="Phi increment of the natural continuation from 0 (under --torque: GJ/L times it)")
 @click.option("--conduit", type=click.Path(dir_okay=False), default=None,
               help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
                    "the rod stays inside it, touching its wall where it must")
+@click.option("--max-error", type=float, default=1e-6, show_default=True,
+              callback=_number("--max-error", positive=True), help="accuracy guard on the estimated error")
+@click.option("--uniform", is_flag=True, help="keep the first mesh (no refinement)")
+@click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=4000, show_default=True,
+              help="largest mesh the refinement may reach")
 @rod_options
-def solve(gamma, phi, load_step, conduit, N, k, w, EI, GJ, EA, L):
-    """One equilibrium at (Gamma, Phi), reached by loading Phi up from 0.
+def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, N, k, w, EI, GJ, EA, L):
+    """One equilibrium at (Gamma, Phi), reached by loading Phi (or the end torque) up from 0.
 
-    Prints `name value` pairs: stretch, torque, l0, helical_waves,
-    min_alignment (min d3.K3), Newton iterations and residual norm.
+    The mesh starts from the problem's lengths (or --N) and is refined until the
+    estimated error (a re-solve in a richer space, as trace's accuracy guard) is
+    below --max-error and, in a conduit, the side force's below 1e-3; a result far
+    above them is refused. Prints `name value` lines: the controls (T, gamma,
+    phi_L, torque, l0) and responses (stretch, helical_waves, min_alignment, in a
+    conduit min_gap, side_force and the contact zones), Newton's iterations and
+    residual norm, the mesh N, the error estimates (what to trust).
     """
     from .drivers.solve import ConvergenceError, solve_equilibrium
     rod = _rod(w, EI, GJ, EA, L)
-    gamma, T = _tension(gamma, rod)
+    T = click.get_current_context().meta.get("rodcont.T")
+    if l0 is not None and (gamma is not None or T is not None):
+        raise UserError("give one of --gamma, --T and --l0")
+    if l0 is None:
+        gamma, T = _tension(gamma, rod)
+    if (phi is None) == (torque is None):
+        raise UserError("give --phi (the end rotation) or --torque (the end torque), one of them")
     try:
         curve, wall = _conduit(conduit, rod)
-        _stretch_warning(rod, T)
-        eq = solve_equilibrium(gamma, phi, rod, N=N, k=k, load_step=load_step, T=T, curve=curve, wall=wall)
+        if T is not None:
+            _stretch_warning(rod, T)
+        eq = solve_equilibrium(None if T is not None else gamma, phi, rod, N=N if _explicit("N") else None, k=k,
+                               load_step=load_step, T=T, curve=curve, wall=wall, torque=torque, l0=l0,
+                               adapt=not uniform, max_error=max_error, N_max=N_max, strict=True)
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
+    _print_equilibrium(eq, wall is not None)
+
+
+def _print_equilibrium(eq, conduit: bool) -> None:
     o = eq.outputs
-    for name in ("phi_L", "stretch", "torque", "l0"):
-        click.echo(f"{name} {o[name]:.15g}")
+    for name in ("T", "gamma", "phi_L", "torque", "l0", "stretch"):
+        if name != "gamma" or math.isfinite(o[name]):
+            click.echo(f"{name} {o[name]:.15g}")
     click.echo(f"helical_waves {o['helical_waves']}")
     click.echo(f"min_alignment {o['min_alignment']:.15g}")
-    click.echo(f"defect {o['defect']:.6g}")
-    if wall is not None:
+    if conduit:
         c = eq.contact()
         click.echo(f"min_gap {c['min_gap']:.6g}")
         click.echo(f"side_force {c['side_force']:.10g}")
         for a, b, f in c["zones"]:
             click.echo(f"contact {a:.6g} {b:.6g} {f:.10g}" + ("  (point)" if a == b else ""))
+        click.echo(f"force_scale {o['force_scale']:.6g}")
     click.echo(f"newton_iterations {eq.newton.iterations}")
     click.echo(f"residual_norm {eq.newton.residual_norm:.6g}")
-    # the error the trace's accuracy guard estimates (a re-solve in a richer space): solve keeps its uniform
-    # mesh, which a narrow contact or a deep sag can leave far from the answer
-    from .mesh import ErrorEstimator
-    estimator = ErrorEstimator(eq.system, watch_side_force=True)
-    err = estimator.estimate(eq.x, float(phi))  # the system continues phi_L
-    click.echo(f"error {err:.2g}")
-    if wall is not None:
-        sf_err = estimator.side_force_error
-        click.echo(f"side_force_error {sf_err:.2g}")
-        if not sf_err <= 1e-3:  # the law's own error for a point force is 2e-4 at eps = 1e-5
-            click.echo(f"rodcont: warning: the side force's estimated error {sf_err:.2g} exceeds 1e-3 on this "
-                       f"uniform mesh of N = {eq.system.disc.N}: raise --N (or use trace, whose mesh adapts)",
-                       err=True)
-    if not err <= 1e-6:
-        click.echo(f"rodcont: warning: the estimated error {err:.2g} exceeds 1e-6 on this uniform mesh of N = "
-                   f"{eq.system.disc.N}: raise --N (or use trace, whose mesh adapts)", err=True)
+    click.echo(f"N {o['N']}")
+    click.echo(f"error {eq.error:.2g}")
+    if conduit:
+        click.echo(f"side_force_error {eq.side_force_error:.2g}")
+    for said in eq.notes:
+        click.echo(f"rodcont: note: {said}", err=True)
+    for said in eq.warnings:
+        click.echo(f"rodcont: warning: {said}", err=True)
 
 
 @main_group.command()

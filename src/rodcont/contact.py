@@ -44,9 +44,11 @@ class Wall:
     ``eps``: the relative smoothing of the contact law (module docstring);
     deviations from exact contact are ``O(eps c)`` in the gap.
     ``force_scale``: ``P``, the force per unit length at which the rod sits
-    exactly on the wall (default: the weight per unit length ``w``, or
-    ``EI c / L^4`` for a weightless rod). Any positive ``P`` gives the same
-    limit; one near the actual contact forces gives the smallest error.
+    exactly on the wall. Without one a model takes :meth:`scale` (the weight per
+    unit length ``w``, or ``EI c / L^4`` for a weightless rod: what files written
+    without a stored scale were solved with), and ``solve`` the problem's own,
+    :func:`default_force_scale`. Any positive ``P`` gives the same limit; one near
+    the actual contact forces gives the smallest error.
     ``contact_level``: a point is in contact where the wall pushes with at least
     ``contact_level * P`` (reporting only: the equations do not use it). For
     the default 1/2 that is where the gap is below ``1.5 eps c``: tied to the
@@ -126,14 +128,15 @@ class Wall:
         # the two forms of the same root of p^2/k + g p - mu = 0, each free of cancellation on its side
         return np.where(np.real(gamma) > 0, (2.0 * P) / (root + gamma), 0.5 * P * (root - gamma))
 
-    def force(self, D1, D2, P: float, S=None):
+    def force(self, D1, D2, P: float, S=None, pressure=None):
         """The wall's force per unit ``S`` on the rod, components on ``K1, K2, K3``: ``q = -p Delta / c``
         across, and, where the clearance varies, ``p c'(S) |Delta|^2 / c^2`` along the axis (the wall of a
         widening conduit is a cone: its normal leans by ``c'``, so a frictionless wall pushes the rod toward
         the wide end; exact for a straight axis, to ``O(c kappa)`` on a curved one). The force acts through
-        the centreline: the moment ``a p c'`` of a rod of radius ``a`` on a leaning wall is left out."""
+        the centreline: the moment ``a p c'`` of a rod of radius ``a`` on a leaning wall is left out.
+        ``pressure``: :meth:`pressure` at these points, when already computed."""
         c = self._c(S)
-        p = self.pressure(D1, D2, P, S)
+        p = self.pressure(D1, D2, P, S) if pressure is None else pressure
         f = -p / c
         if not self.varying:
             return f * D1, f * D2, 0.0
@@ -230,3 +233,118 @@ def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tup
     return [(float(S[a]), float(S[b]), float(cum[bounds[i + 1]] - cum[bounds[i]]))
             for i, (a, b) in enumerate(runs)]
 
+
+
+# --------------------------------------------------------------------------
+# The force scale a problem needs, and the penetration it leaves
+# --------------------------------------------------------------------------
+#: The penetration guard: a solved rod may sit at most this fraction of the local clearance inside the wall
+#: (the smoothed law leaves ``~ eps c p / P``; solve stiffens the law to a tenth of it when it is passed).
+MAX_PENETRATION = 1e-3
+
+
+def default_force_scale(rod, T: float, curve=None, wall: "Wall | None" = None) -> float:
+    """``P`` for a problem whose wall gives none: the largest of the wall forces per unit length the rod must
+    carry, ``w`` (its weight), ``|T| kappa`` (pulled or pushed round the axis' curvature ``kappa``, its largest),
+    ``EI kappa / L^2`` (bent with the axis) and ``EI c / L^4`` (a weightless rod deflected across the
+    clearance): the law's penetration ``~ eps c p / P`` stays ``O(eps c)`` where the rod carries them.
+    (The old default, ``w`` or ``EI c / L^4``, is :meth:`Wall.scale`: files without a stored scale keep it.)"""
+    kappa = 0.0 if curve is None or getattr(curve, "constant_frame", True) else float(curve.max_curvature())
+    L = float(rod.L)
+    c = wall.max_on(0.0, L) if wall is not None else 0.0
+    return float(max(rod.w, abs(float(T)) * kappa, rod.EI * kappa / L**2, rod.EI * c / L**4))
+
+
+def penetration(model, disc, x, p) -> float:
+    """The deepest penetration of the rod into the wall, as a fraction of the local clearance:
+    ``max_S (|Delta| - c(S)) / c(S)`` on the contact grid (negative: nowhere in the wall)."""
+    con = model.contact(disc, x, p)
+    return float(np.max(-con["gap"] / model.wall.clearance_at(con["S"])))
+
+
+# --------------------------------------------------------------------------
+# Conduit files
+# --------------------------------------------------------------------------
+CONDUIT_KEYS = ("clearance", "eps", "force_scale", "contact_level", "reference")
+
+
+class ConduitError(ValueError):
+    """A conduit file that cannot be used; the message is one line and starts with the file's path."""
+
+
+def load_conduit(path, L: float, reference: str | None = None):
+    """``(curve, wall)`` of a conduit file (TOML, section ``[conduit]``): the wall
+    (:class:`Wall`: ``clearance`` required, ``eps``, ``force_scale``, ``contact_level``) and the conduit's
+    axis from its ``reference`` key (``KIND[:ARGS]`` as :func:`rodcont.curves.parse_reference`; a
+    ``well:FILE`` read relative to the conduit file), its span checked against ``L``; ``curve`` is None when
+    the file gives no axis (the caller's own reference curve applies).
+
+    ``reference``: the caller's reference curve specification, if any other than ``straight``: a file that
+    names a different one is refused (the axis is given twice). Every failure is a :class:`ConduitError`
+    whose message starts with ``path``.
+    """
+    import json
+    import os
+    import tomllib
+    if os.path.exists(path) and not os.path.isfile(path):  # a device or a FIFO would never end (or start)
+        raise ConduitError(f"{path}: not a regular file: not a conduit file")
+    try:
+        with open(path, "rb") as fh:
+            if os.fstat(fh.fileno()).st_size > 1 << 20:
+                raise ConduitError(f"{path}: larger than 1 MB: not a conduit file")
+            doc = tomllib.load(fh)
+    except OSError as exc:
+        raise ConduitError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConduitError(f"{path}: not a TOML file ({' '.join(str(exc).split())})") from None
+    sec = doc.get("conduit")
+    if not isinstance(sec, dict):
+        raise ConduitError(f"{path}: needs a [conduit] section with clearance = C")
+    unknown = sorted(set(sec) - set(CONDUIT_KEYS))
+    if unknown:
+        raise ConduitError(f"{path}: unknown key(s) {', '.join(unknown)} in [conduit] (known: "
+                           f"{', '.join(CONDUIT_KEYS)})")
+    if "clearance" not in sec:
+        raise ConduitError(f"{path}: [conduit] needs clearance = C (conduit radius minus rod radius) "
+                           f"or clearance = [[S0, C0], [S1, C1], ...] (varying linearly between stations S)")
+    try:
+        wall = Wall(**{key: sec[key] for key in CONDUIT_KEYS[:-1] if key in sec})
+    except (TypeError, ValueError) as exc:
+        raise ConduitError(f"{path}: {exc}") from None
+    spec = sec.get("reference")
+    if spec is None:
+        return None, wall
+    if not isinstance(spec, str):
+        raise ConduitError(f"{path}: reference must be a string KIND[:ARGS], got {spec!r}")
+    if reference is not None and reference.strip() not in ("straight", spec.strip()):
+        raise ConduitError(f"{path} gives the reference curve ({spec}): drop --reference {reference}")
+    source = f"{path}: reference = {json.dumps(spec, ensure_ascii=False)}"  # as written in the file
+    kind, _, args = spec.strip().partition(":")
+    if kind == "well" and args and not os.path.isabs(args):
+        spec = f"well:{os.path.join(os.path.dirname(os.path.abspath(path)), args)}"
+    return _conduit_axis(spec, L, source), wall
+
+
+def _conduit_axis(spec: str, L: float, source: str):
+    """The reference curve of a conduit file's ``reference`` key (None for ``straight``), errors worded for
+    the file's key (:func:`rodcont.curves.parse_reference` words them for ``--reference``)."""
+    from .curves import parse_reference
+    if not spec.strip():
+        raise ConduitError(f"{source}: needs KIND[:ARGS] (straight, bump:H,THETA, ...)")
+    if spec.strip() == "straight":
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            curve = parse_reference(spec, L)
+    except (ValueError, ArithmeticError) as exc:
+        msg = str(exc)
+        kind = spec.strip().partition(":")[0].strip()
+        for prefix in (f"--reference {spec}: ", f"--reference {kind}: ", "--reference: ", "--reference "):
+            if msg.startswith(prefix):
+                msg = msg[len(prefix):]
+                break
+        raise ConduitError(f"{source}: {msg}") from None
+    if abs(curve.span - L) > 1e-9 * L:
+        raise ConduitError(f"{source}: its span {curve.span:.15g} differs from --L {L:.15g}; "
+                           f"give --L {curve.span:.15g}")
+    return curve

@@ -32,7 +32,14 @@ changes is (the rest is the same expression of ``r', r'', r'''``)::
     tau_q' = k3' + N'/D - N D'/D^2   (N, D numerator and denominator of the fraction)
 
 For a straight reference (``k = 0``) every added term vanishes; that case
-keeps its own, cheaper residual. The end twist condition becomes
+keeps its own, cheaper residual.
+
+Loads and ends. The distributed loads (the weight ``f = w g``, the wall's
+force, any other) are objects (:mod:`rodcont.loads`), each added once to both
+residuals from the kinematics they are handed; the hand-derived Jacobian covers
+the straight rod under its weight alone, every other case takes the complex
+step. The boundary conditions are assembled from end-condition objects
+(:mod:`rodcont.ends`: clamp, rotation or torque, tension or unstressed length). The end twist condition becomes
 ``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
 between the ends (:attr:`rodcont.curves.ReferenceCurve.end_twist`).
 
@@ -54,6 +61,7 @@ from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
 from .curves import _cross, _dot
+from .loads import Kinematics
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
 FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
@@ -235,10 +243,11 @@ class RodParameters:
 # The model
 # --------------------------------------------------------------------------
 class EulerianRod:
-    """The canonical problem as a :class:`BVProblem`: clamped at both ends,
-    ``phi(0) = 0``, ``phi(L) = phi_L``, axial force ``F . K3 = T`` at ``S = L``.
+    """The rod as a :class:`BVProblem`: by default the canonical problem, clamped at both ends,
+    ``phi(0) = 0``, ``phi(L) = phi_L``, axial force ``F . K3 = T`` at ``S = L``, under its weight.
 
-    Parameters vector ``p = (phi_L, T, w, EI, GJ, EA)``.
+    Parameters vector ``p = (phi_L, T, w, EI, GJ, EA)`` (:data:`PARAMS`), followed by
+    the parameters the end conditions add (``torque``, ``l0``): :attr:`param_names`.
 
     ``curve`` (default: the straight span ``0 .. L e1``) is any
     :class:`rodcont.curves.ReferenceCurve` whose ``span`` is ``rod.L``. The
@@ -251,27 +260,75 @@ class EulerianRod:
     ``phi(end) = phi_L - beta``, so that ``phi_L`` stays the physical turn of
     the end clamp relative to the start clamp (see
     :attr:`rodcont.curves.ReferenceCurve.end_twist`).
+
+    ``loads``: the distributed loads (:mod:`rodcont.loads`; default ``[Weight()]``,
+    and ``WallContact(wall)`` with a ``wall``), each added once to both residuals.
+    ``ends``: the end conditions (:class:`rodcont.ends.RodEnds`; default the
+    canonical ones); a :class:`rodcont.ends.Torque` frees ``phi_L``, an
+    :class:`rodcont.ends.UnstressedLength` frees ``T`` (unknowns of the
+    discretisation, ``disc.full_params(x, p)`` reads them).
     """
 
-    def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None, wall=None):
+    def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None, wall=None,
+                 loads=None, ends=None):
+        from .ends import RodEnds
         self.rod = rod or RodParameters()
+        if not isinstance(self.rod, RodParameters):
+            raise TypeError(f"rod must be a RodParameters, got {self.rod!r}")
         self.curve = curve or StraightReference(self.rod.L)
         if not isinstance(self.curve, ReferenceCurve):
             raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {self.curve!r}")
-        self.wall = wall
+        self._set_loads(loads, wall)
+        self.ends = RodEnds() if ends is None else ends
+        if not isinstance(self.ends, RodEnds):
+            raise TypeError(f"ends must be a rodcont.ends.RodEnds, got {self.ends!r}")
+        extra = self.ends.params
+        self.param_names = PARAMS + tuple(name for name, _ in extra)
+        self._extra_values = dict(extra)
+        self.constant_frame = bool(self.curve.constant_frame)
+        self.g = np.asarray(self.rod.weight_direction, float)
+        unused = self._set_frame()
+        if any(load.reads_deflection for load in self.loads):  # the contact force reads the deflection itself
+            unused = (Jet.PHI[0],)
+        # mesh breakpoints: a well's stations (its curvature jumps) and a clearance table's (its slope jumps)
+        stations = [self.interval[0], self.interval[1]]
+        if not self.constant_frame:
+            stations += list(self.curve.breakpoints)
+        for load in self.loads:
+            stations += list(load.stations(*self.interval))
+        self.stations = np.unique(np.asarray(stations, float))
+        self._set_problem([j for j in range(Jet.SIZE) if j not in unused])
+
+    def _set_loads(self, loads, wall) -> None:
+        """``self.loads`` (default ``[Weight()]``, a ``WallContact`` added for ``wall``), each bound to the rod."""
+        from .loads import DistributedLoad, WallContact, Weight
         if wall is not None:
             from .contact import Wall
             if not isinstance(wall, Wall):
                 raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        loads = [Weight()] if loads is None else list(loads)
+        for load in loads:
+            if not isinstance(load, DistributedLoad):
+                raise TypeError(f"a load must be a rodcont.loads.DistributedLoad, got {load!r}")
+        walls = [load for load in loads if isinstance(load, WallContact)]
+        if wall is not None and not walls:
+            walls = [WallContact(wall)]
+            loads.append(walls[0])
+        if len(walls) > 1 or (wall is not None and walls[0].wall is not wall):
+            raise ValueError("one conduit wall per rod (give it as wall= or as a WallContact load, not both)")
+        self.loads = loads
+        self._wall_load = walls[0] if walls else None
+        if self.wall is not None:
             kmax = self.curve.max_curvature() if not self.curve.constant_frame else 0.0
-            c_span = wall.max_on(0.0, float(self.curve.length))
+            c_span = self.wall.max_on(0.0, float(self.curve.length))
             if c_span * kmax >= 1.0:
                 raise ValueError(f"the conduit overlaps itself: clearance {c_span:g} times the largest "
                                  f"curvature of its axis ({kmax:g}) must be below 1")
-            # fixed here, not read from the parameters: a trace in w or EI keeps one contact law
-            self.contact_scale = wall.scale(self.rod.w, self.rod.EI, self.rod.L)
-        self.constant_frame = bool(self.curve.constant_frame)
-        self.g = np.asarray(self.rod.weight_direction, float)
+        for load in loads:  # fixed here, not read from the parameters: a trace in w or EI keeps one contact law
+            load.bind(self)
+
+    def _set_frame(self) -> tuple:
+        """The reference frame's data and the interval; returns the jet components the residual does not read."""
         if self.constant_frame:
             if abs(self.curve.length - self.rod.L) > 1e-14 * self.rod.L:
                 raise ValueError("the reference curve length must equal L")
@@ -281,44 +338,51 @@ class EulerianRod:
             self.gK = self.frame @ self.g  # weight direction in frame components
             self.twist_offset = 0.0
             self.joins = np.zeros(0)  # a constant frame: no curvature to jump
-            interval = (0.0, self.rod.L)
+            self.interval = (0.0, self.rod.L)
             # The residual reads the jets through r' and its derivatives: with a constant frame the
             # values Delta1, Delta2 and phi do not enter; of the parameters only w, EI, GJ, EA do.
-            unused = (Jet.D1[0], Jet.D2[0], Jet.PHI[0])
-        else:
-            if abs(self.curve.span - self.rod.L) > 1e-12 * self.rod.L:
-                raise ValueError(f"the span of the reference curve ({self.curve.span:.15g}) must equal the rod's "
-                                 f"L ({self.rod.L:.15g}): stretch and Gamma are measured on the span "
-                                 f"(use RodParameters(L=curve.span))")
-            self._curve_cache: dict = {}  # grid bytes -> data, least recently used first
-            self._curve_cache_size = 0  # bytes of data and keys held
-            self.twist_offset = float(self.curve.end_twist)
-            # where the reference's curvature jumps the exact Delta', Delta'', phi' jump: joins (see interface)
-            self.joins = np.asarray(self.curve.curvature_jumps, float)
-            self._join_curve_cache: dict = {}
-            interval = (0.0, float(self.curve.length))
-            # with a turning frame Delta1, Delta2 enter through omega x Delta; phi still does not
-            unused = (Jet.PHI[0],)
-        if wall is not None:  # the contact force reads the deflection itself
-            unused = (Jet.PHI[0],)
-        self.interval = interval
-        # mesh breakpoints: a well's stations (its curvature jumps) and a clearance table's (its slope jumps)
-        stations = [interval[0], interval[1]]
-        if not self.constant_frame:
-            stations += list(self.curve.breakpoints)
-        if wall is not None and wall.varying:
-            stations += [S for S, _ in wall.clearance if interval[0] < S < interval[1]]
-        self.stations = np.unique(np.asarray(stations, float))
+            return (Jet.D1[0], Jet.D2[0], Jet.PHI[0])
+        if abs(self.curve.span - self.rod.L) > 1e-12 * self.rod.L:
+            raise ValueError(f"the span of the reference curve ({self.curve.span:.15g}) must equal the rod's "
+                             f"L ({self.rod.L:.15g}): stretch and Gamma are measured on the span "
+                             f"(use RodParameters(L=curve.span))")
+        self._curve_cache: dict = {}  # grid bytes -> data, least recently used first
+        self._curve_cache_size = 0  # bytes of data and keys held
+        self.twist_offset = float(self.curve.end_twist)
+        # where the reference's curvature jumps the exact Delta', Delta'', phi' jump: joins (see interface)
+        self.joins = np.asarray(self.curve.curvature_jumps, float)
+        self._join_curve_cache: dict = {}
+        self.interval = (0.0, float(self.curve.length))
+        # with a turning frame Delta1, Delta2 enter through omega x Delta; phi still does not
+        return (Jet.PHI[0],)
+
+    def _set_problem(self, dependence: list) -> None:
+        """The :class:`BVProblem` (``dependence``: the jet components the residual reads) and what the
+        boundary conditions and the hand-derived Jacobian precompute."""
+        from .loads import Weight
+        used = {"EI", "GJ", "EA"}.union(*(load.params for load in self.loads))
+        # the hand-derived derivatives cover the straight rod under its weight alone; every other case takes
+        # the complex step of its residual
+        self.weight_only = self.constant_frame and [type(load) for load in self.loads] == [Weight]
+        integrals = {}
+        if self.ends.has_integrals:
+            integrals = dict(integrals=self.integrals, integral_dependence=dependence)
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
-                                 interval=interval, params=PARAMS, names=FIELDS,
-                                 jet_dependence=[j for j in range(Jet.SIZE) if j not in unused],
-                                 residual_params=[PARAMS.index(q) for q in ("w", "EI", "GJ", "EA")],
-                                 # the hand-derived derivatives cover the straight rod without a wall;
-                                 # every other case takes the complex step of its residual
-                                 jacobian=self.jacobian if self.constant_frame and wall is None else None,
-                                 affine_bc=True,
+                                 interval=self.interval, params=self.param_names, names=FIELDS,
+                                 free=[self.param_names.index(q) for q in self.ends.frees],
+                                 jet_dependence=dependence,
+                                 residual_params=[i for i, q in enumerate(self.param_names) if q in used],
+                                 jacobian=self.jacobian if self.weight_only else None,
+                                 affine_bc=self.ends.affine,
                                  joins=self.joins, join_continuity=(0,) * len(FIELDS) if self.joins.size else None,
-                                 interface=self.interface if self.joins.size else None)
+                                 interface=self.interface if self.joins.size else None, **integrals)
+        self._bc_conditions = self.ends.conditions
+        self._bc_affine = None
+        if self.ends.affine:  # the rows as data: jet index (start, then end jet), parameter, offset
+            terms = [(j + end * Jet.SIZE, q, off) for end, c in self._bc_conditions for j, q, off in c.terms(self, end)]
+            self._bc_affine = (np.array([t[0] for t in terms]), np.array([t[1] or 0 for t in terms]),
+                               np.array([float(t[1] is not None) for t in terms]),
+                               np.array([t[2] for t in terms], float))
         self._active = np.unique(np.asarray(self.problem.jet_dependence, int))
         self._jet_pos = np.full(Jet.SIZE, -1)
         self._jet_pos[self._active] = np.arange(self._active.size)
@@ -327,11 +391,40 @@ class EulerianRod:
             pos = self._jet_pos
             self._dG_cols = (_evenly(pos[list(_SEED_JETS)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
 
+    # ---- the wall, one of the loads ------------------------------------------------
+    @property
+    def wall(self):
+        """The conduit wall (:class:`rodcont.contact.Wall`) of the rod's :class:`rodcont.loads.WallContact`, or None."""
+        return self._wall_load.wall if self._wall_load is not None else None
+
+    @wall.setter
+    def wall(self, wall):  # a homotopy in the law's smoothing swaps the wall (settle_in_conduit)
+        if self._wall_load is None:
+            raise ValueError("this rod has no conduit wall to replace")
+        self._wall_load.wall = wall
+
+    @property
+    def contact_scale(self) -> float:
+        """``P``, the force scale of the contact law, fixed when the model was built."""
+        if self._wall_load is None:
+            raise AttributeError("this rod has no conduit wall")
+        return self._wall_load.scale
+
+    @contact_scale.setter
+    def contact_scale(self, P: float):  # a homotopy to a stiffer law (solve's penetration guard)
+        self._wall_load.scale = float(P)
+
     def params(self, phi_L: float = 0.0, T: float = 0.0, **changes) -> np.ndarray:
+        """The parameter vector (:attr:`param_names`): ``phi_L``, ``T``, the rod's ``w, EI, GJ, EA``, the end
+        conditions' own (``torque``, ``l0``); ``changes`` replace any of them by name."""
         r = self.rod
-        d = dict(phi_L=phi_L, T=T, w=r.w, EI=r.EI, GJ=r.GJ, EA=r.EA)
+        d = dict(phi_L=phi_L, T=T, w=r.w, EI=r.EI, GJ=r.GJ, EA=r.EA, **self._extra_values)
+        unknown = set(changes) - set(d)
+        if unknown:
+            raise TypeError(f"unknown parameter(s) {', '.join(sorted(unknown))}; this rod's: "
+                           f"{', '.join(self.param_names)}")
         d.update(changes)
-        return np.array([d[n] for n in PARAMS], float)
+        return np.array([d[n] for n in self.param_names], float)
 
     # ---- kinematics shared by residual and outputs ----------------------------
     # With a constant frame every vector is written in frame components
@@ -355,7 +448,7 @@ class EulerianRod:
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
         if not self.constant_frame:
             return self._residual_curved(S, z, p)
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         r1, r2, r3, F, Fp, phi1, phi2 = self._straight_jets(z)
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
@@ -372,14 +465,22 @@ class EulerianRod:
         twist = phi1 + tau
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
-        EF = Fp + (w * n / alpha) * self.gK[:, None]
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        if self.wall is not None:
-            q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            EF[0] += q1
-            EF[1] += q2
-            EF[2] += q3
-        return _equations(EF, EM, mp / GJ)
+        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, self.gK[:, None]), Fp, EM, mp)
+        return _equations(EF, EM, torque / GJ)
+
+    def _add_loads(self, k, EF, EM, torque):
+        """The distributed loads (:mod:`rodcont.loads`) added to the force balance ``EF``, the moment
+        balance ``EM`` (on ``K1, K2``) and the torque ``m'``: ``EF + sum f``, ``EM + sum l``, ``m' + sum l.d3``."""
+        for load in self.loads:
+            f = load.force(k)
+            if f is not None:
+                EF = EF + (np.stack(np.broadcast_arrays(*f)) if isinstance(f, tuple) else f)
+            moment = load.moment(k)
+            if moment is not None:
+                EM = EM + moment[:2]
+                torque = torque + _dot(moment, k.d3)
+        return EF, EM, torque
 
     def jacobian(self, S, z, p):
         """The residual and its exact derivatives w.r.t. the jet (constant frame only), by hand.
@@ -391,7 +492,7 @@ class EulerianRod:
         enter linearly (or bilinearly) and are differentiated in closed form. Checked against the
         complex step of :meth:`residual` in ``tests/test_rod.py``.
         """
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         r1, r2, r3, F, Fp, phi1, phi2 = self._straight_jets(z)
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         dr1, dr2, dr3 = _SEED_R
@@ -495,15 +596,31 @@ class EulerianRod:
         return G, out
 
     def bc(self, za, zb, p):
-        """Clamps (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta``
-        when the frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``: affine in the jets and
-        the parameters (declared to the collocation, which then differentiates them once)."""
-        phi_L, T = p[0], p[1]
-        D1, D2, PHI = Jet.D1, Jet.D2, Jet.PHI
-        end_phi = phi_L if self.constant_frame else phi_L - self.twist_offset
+        """The end conditions (:class:`rodcont.ends.RodEnds`), rows grouped by kind: by default clamps
+        (``Delta = Delta' = 0`` at both ends), twist ``phi(0) = 0, phi(end) = phi_L`` (``phi_L - beta`` when the
+        frame turns by ``beta`` between the ends), tension ``F . K3(end) = T``: affine in the jets and the
+        parameters (declared to the collocation, which then differentiates them once)."""
+        if self._bc_affine is not None:  # every row z[j] - (p[q] + offset): one gather for all
+            jet, param, has_param, offset = self._bc_affine
+            zz = np.concatenate([za, zb])
+            shift = np.asarray(p)[param] * has_param + offset
+            return zz[jet] - shift.reshape(shift.shape + (1,) * (zz.ndim - 1))
+        z = (za, zb)
+        rows = []
+        for end, condition in self._bc_conditions:
+            rows += condition.rows(self, z[end], p, end)
         # np.array, not np.stack: the same array (the rows have one shape) for a tenth of the cost on scalars
-        return np.array([za[D1[0]], za[D1[1]], za[D2[0]], za[D2[1]], zb[D1[0]], zb[D1[1]], zb[D2[0]], zb[D2[1]],
-                         za[PHI[0]], zb[PHI[0]] - end_phi, zb[Jet.F[2]] - T])
+        return np.array(rows)
+
+    def integrals(self, S, z, p):
+        """The integrands of the end conditions' integral conditions (``int q dS = 0``), ``(n_int, npts)``."""
+        return np.array([q for _, c in self._bc_conditions if (q := c.integrand(self, S, z, p)) is not None])
+
+    def end_torque(self, z, p, end: int):
+        """``m = GJ J1 (phi' + tau_q)`` from an end's jet ``z`` (``(jet_size,)`` or with a trailing batch axis)."""
+        zz = z.reshape(z.shape[0], -1)
+        S = np.full(zz.shape[1], self.interval[end])
+        return self._axial_quantities(S, zz, p)[0].reshape(z.shape[1:])
 
     # ---- the moving frame ------------------------------------------------------
     #: Bound on the bytes of curve data kept by :meth:`_curve_data` (least recently used out first).
@@ -573,7 +690,7 @@ class EulerianRod:
         The moment equations are still projected on ``K1, K2`` (the first two
         local components).
         """
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         (r1, r2, r3), k, gK = self._curved_jets(S, z)
         F = z[Jet.F]
         Fp = z[Jet.FP]
@@ -602,18 +719,13 @@ class EulerianRod:
         twist = phi1 + tau
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
-        EF = Ft + (w * n / alpha) * gK
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        if self.wall is not None:
-            q1, q2, q3 = self.wall.force(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
-            EF[0] += q1
-            EF[1] += q2
-            EF[2] += q3
-        return _equations(EF, EM, mp / GJ)
+        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK), Ft, EM, mp)
+        return _equations(EF, EM, torque / GJ)
 
     def _axial_curved(self, S, z, p):
         """:meth:`_axial_quantities` with a moving frame."""
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         (r1, r2, _), k, _ = self._curved_jets(S, z)
         n = np.sqrt(_dot(r1, r1))
         d3 = r1 / n
@@ -655,7 +767,7 @@ class EulerianRod:
     def _joint_quantities(k, z, p):
         """``(d3.K1, d3.K2, u.K1, u.K2, m/GJ)`` from jets ``z`` with the curvatures ``k``: ``u = alpha (r' x r'')/n^3``
         (``= d3 x d3_s``), ``m/GJ = alpha/n (phi' + tau_q)`` as in :meth:`_residual_curved`."""
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         r1, r2, r3 = frame_jets(k, z[list(Jet.D1)], z[list(Jet.D2)])
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(z[Jet.F], d3) / EA
@@ -698,7 +810,11 @@ class EulerianRod:
         comps = [lambda S: 0 * S] * 3
         comps += [lambda S, a=a: T * axis[a] - w * gt[a] * (S - 0.5 * L) - w * ga * axis[a] * (S - L)
                   for a in range(3)]
-        return disc.project(comps)
+        return disc.project(comps, self._free_guess(T))
+
+    def _free_guess(self, T: float) -> list:
+        """First values of the freed parameters: ``phi_L = 0`` (the untwisted start), ``T`` as given."""
+        return [float(T) if name == "T" else 0.0 for name in self.ends.frees]
 
     def _initial_guess_curved(self, disc: Collocation, T: float) -> np.ndarray:
         L, w, g = self.curve.length, self.rod.w, self.g
@@ -714,7 +830,7 @@ class EulerianRod:
             return f
 
         zero = lambda S: 0 * S  # noqa: E731
-        return disc.project([zero, zero, zero, component(0), component(1), component(2)])
+        return disc.project([zero, zero, zero, component(0), component(1), component(2)], self._free_guess(T))
 
     def force(self, disc: Collocation, x: np.ndarray, S) -> np.ndarray:
         """Internal force ``F(S)`` in global components, ``(3, len(S))``."""
@@ -766,6 +882,7 @@ class EulerianRod:
             t = np.linspace(0.0, 1.0, per_interval + 1)[:-1]
             S = np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
         S = np.asarray(S, float)
+        p = disc.full_params(x, p)
         z = (disc.jet_matrix(S) @ x).reshape(self.problem.jet_size, S.size)
         D1, D2 = z[Jet.D1[0]], z[Jet.D2[0]]
         gap = self.wall.clearance_at(S) - np.hypot(D1, D2)
@@ -782,17 +899,17 @@ class EulerianRod:
 
     def stretch_factor_min(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> float:
         """Smallest stretch factor ``alpha = 1 + F.d3/EA`` at the collocation points."""
-        return float(np.min(self._axial_quantities(disc.S, disc.jets(x), p)[1]))
+        return float(np.min(self._axial_quantities(disc.S, disc.jets(x), disc.full_params(x, p))[1]))
 
     def torque_profile(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> np.ndarray:
         """``m = GJ J1 (phi' + tau_q)`` at the collocation points."""
-        return self._axial_quantities(disc.S, disc.jets(x), p)[0]
+        return self._axial_quantities(disc.S, disc.jets(x), disc.full_params(x, p))[0]
 
     def _axial_quantities(self, S, z, p):
         """Torque ``m``, stretch ``alpha``, ``n = |r'|`` and ``d3`` (frame components) at points ``S``."""
         if not self.constant_frame:
             return self._axial_curved(S, z, p)
-        phi_L, T, w, EI, GJ, EA = p
+        phi_L, T, w, EI, GJ, EA = p[:6]
         r1, r2, _ = self._frame_jets(z)
         n = np.sqrt(_dot(r1, r1))
         d3 = r1 / n
@@ -881,6 +998,7 @@ class _Outputs:
 
     def __call__(self, x, p):
         model, disc = self.model, self.disc
+        p = disc.full_params(x, p)  # the freed parameters (phi_L under a torque, T under l0) from x
         z = disc.jets(x)
         D1, D2, d1p, d2p, zm, zc = self._split(x)
         m, alpha, n, _ = model._axial_quantities(self.S_axial, np.concatenate([z, zm], axis=1), p)
@@ -910,6 +1028,7 @@ class _Outputs:
 
     def interval_defect(self, x, p) -> np.ndarray:
         """The relative defect of :meth:`defect`, its maximum on each subinterval."""
+        p = self.disc.full_params(x, p)
         z = self.disc.jets(x)
         zc = self._split(x)[5]
         G = np.abs(self.model.residual(self.S_check, zc, p)) / self._scales(p, z)[:, None]

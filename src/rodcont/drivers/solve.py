@@ -1,13 +1,28 @@
-"""One equilibrium by natural loading: ``phi_L`` raised from 0 in steps, Newton at each.
+"""One equilibrium by natural loading, on a mesh that adapts until its own error estimate meets the guard.
 
-Natural continuation cannot pass a fold in ``phi_L``: beyond the first fold it
-reports non-convergence (:class:`ConvergenceError`) and says where it stopped.
+The end rotation ``phi_L`` (or, under torque control, the end torque) is raised
+from 0 in steps, Newton at each; the tension is prescribed (``gamma`` or ``T``) or
+follows from a fixed unstressed length ``l0``. Natural continuation cannot pass
+a fold: beyond the first one it reports non-convergence
+(:class:`ConvergenceError`) and says where it stopped.
+
+Then the answer is checked as a trace checks its points
+(:class:`rodcont.mesh.ErrorEstimator`: a re-solve in a richer space) and the mesh
+adapted (:func:`rodcont.mesh.adapted_mesh`) until the estimate is below
+``max_error`` (and, in a conduit, the side force's own estimate below
+``max_side_force_error``); a result still far above the guard is refused
+(:class:`AccuracyError`). In a conduit the contact law's force scale comes from
+the problem (:func:`rodcont.contact.default_force_scale`) and is stiffened by a
+homotopy when the rod sits deeper than :data:`rodcont.contact.MAX_PENETRATION` of
+the clearance inside the wall.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -15,9 +30,18 @@ from ..linalg import NewtonResult
 from ..rod import RodParameters
 from ..system import RodSystem, check_number
 
+#: how far above its guard an estimate may be and still be printed (with a warning): beyond, refused
+FAR_ABOVE = 10.0
+#: the first mesh resolves these lengths (bending under tension, sag onto a wall) with this many subintervals
+PER_LENGTH = 2
+
 
 class ConvergenceError(RuntimeError):
     pass
+
+
+class AccuracyError(ConvergenceError):
+    """The solution's own error estimate is far above the guard on the finest mesh allowed."""
 
 
 def euler_tension(rod: RodParameters) -> float:
@@ -45,21 +69,37 @@ def check_physical(outputs: dict, where: str) -> None:
 
 @dataclass
 class Equilibrium:
-    """One solved equilibrium: its outputs, the unknown vector and how Newton ended."""
+    """One solved equilibrium: its outputs, the unknown vector and how Newton ended.
+
+    ``outputs`` holds every control and response (``T``, ``gamma``, ``phi_L``,
+    ``torque``, ``l0``, ``stretch``, ...); ``error`` and ``side_force_error`` the
+    estimates of :class:`rodcont.mesh.ErrorEstimator` on the final mesh;
+    ``warnings`` what was said about the result (also issued as ``RuntimeWarning``), ``notes`` what was
+    done to reach it (a stiffened contact law).
+    """
 
     outputs: dict
     x: np.ndarray
     system: RodSystem
     newton: NewtonResult
+    error: float = math.nan
+    side_force_error: float = math.nan
+    warnings: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
         return self.newton.converged
 
+    @property
+    def params(self) -> np.ndarray:
+        """The full parameter vector (``model.param_names``), freed parameters read from the solution."""
+        return self.system.disc.full_params(self.x, self.system.base)
+
     def contact(self) -> dict:
         """Contact with the conduit wall (:meth:`rodcont.rod.EulerianRod.contact`)."""
         sysm = self.system
-        return sysm.model.contact(sysm.disc, self.x, sysm.params(self.outputs["phi_L"]))
+        return sysm.model.contact(sysm.disc, self.x, self.params)
 
     def centreline(self, S=None):
         S = np.linspace(*self.system.model.interval, 201) if S is None else S
@@ -75,7 +115,6 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
     (a stiff wall seen from a far-off guess stalls Newton's line search).
     Returns the last stage's solution (the caller confirms it with Newton).
     """
-    import dataclasses
     model, wall = sysm.model, sysm.model.wall
     stages = [0.1]
     while stages[-1] / 100 > wall.eps:
@@ -94,60 +133,355 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
     return x
 
 
-def solve_equilibrium(gamma: float | None, phi_L: float, rod: RodParameters | None = None, N: int = 15, k: int = 5,
-                      load_step: float = 0.5, tol: float = 1e-10, T: float | None = None, curve=None,
-                      wall=None) -> Equilibrium:
-    """Equilibrium at ``(gamma, phi_L)`` (or tension ``T``) reached by loading ``phi_L`` up from 0 in steps.
+def stiffen_contact(sysm: RodSystem, x: np.ndarray, p: np.ndarray, P: float, tol: float = 1e-10) -> np.ndarray:
+    """The equilibrium under the stiffer contact law of force scale ``P`` (``> model.contact_scale``), reached
+    by a homotopy in the scale (at most a factor 10 per stage, halved in the logarithm when Newton fails), as
+    :func:`settle_in_conduit` reaches ``eps``. The system's wall and model carry ``P`` afterwards."""
+    model = sysm.model
+    P0 = model.contact_scale
+    done, step = 0.0, min(1.0, math.log10(P / P0))  # log10 of the factor reached, of the next stage
+    target = math.log10(P / P0)
+    while done < target:
+        nxt = min(done + step, target)
+        model.contact_scale = P0 * 10.0**nxt
+        r = sysm.disc.newton(x, p, tol=tol, max_iter=60)
+        if r.converged:
+            x, done = r.x, nxt
+            continue
+        step *= 0.5
+        if step < 1e-3:
+            model.contact_scale = P0 * 10.0**done
+            _set_force_scale(sysm, model.contact_scale)
+            raise ConvergenceError(f"the contact law could not be stiffened past force scale "
+                                   f"{model.contact_scale:.4g} (aiming at {P:.4g}): {r.message}")
+    _set_force_scale(sysm, P)
+    return x
 
-    A step that fails is halved (down to ``load_step / 1024``).
-    """
-    if rod is None:
-        rod = RodParameters()
-    if not isinstance(rod, RodParameters):
-        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
-    if T is None:
+
+def _set_force_scale(sysm: RodSystem, P: float) -> None:
+    wall = dataclasses.replace(sysm.wall, force_scale=float(P))
+    sysm.wall = wall
+    sysm.model.wall = wall
+    sysm.model.contact_scale = float(P)
+
+
+# --------------------------------------------------------------------------
+# The controls: which parameters are given, which are solved for
+# --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Controls:
+    """The axial control (``T`` given, or ``l0`` with ``T`` a first guess) and the twist control
+    (``phi_L`` or ``torque``)."""
+
+    T: float
+    l0: float | None
+    phi_L: float | None
+    torque: float | None
+
+    def ends(self):
+        from ..ends import Clamp, RodEnds, Rotation, Tension, Torque, UnstressedLength
+        twist = Rotation() if self.torque is None else Torque(self.torque)
+        axial = Tension() if self.l0 is None else UnstressedLength(self.l0)
+        return RodEnds(end=(Clamp(), twist, axial))
+
+    @property
+    def load_name(self) -> str:
+        return "phi_L" if self.torque is None else "torque"
+
+    @property
+    def target(self) -> float:
+        return self.phi_L if self.torque is None else self.torque
+
+
+def _controls(rod, gamma, T, l0, phi_L, torque) -> _Controls:
+    given = [n for n, v in (("gamma", gamma), ("T", T), ("l0", l0)) if v is not None]
+    if len(given) != 1:
+        raise ValueError("give one of gamma, T and l0 (the tension, or the unstressed length that sets it)"
+                         + (f", not {' and '.join(given)}" if given else ""))
+    twist = [n for n, v in (("phi_L", phi_L), ("torque", torque)) if v is not None]
+    if len(twist) != 1:
+        raise ValueError("give one of phi_L and torque (the end rotation, or the end torque)"
+                         + (f", not {' and '.join(twist)}" if twist else ""))
+    if gamma is not None:
         gamma = check_number("gamma", gamma)
         if rod.w == 0:
             raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
         T = rod.tension(gamma)
-    else:
+        if not math.isfinite(T):
+            raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
+    elif T is not None:
         T = check_number("T", T)
-        gamma = rod.gamma(T) if rod.w > 0 else math.nan
-    phi_L = check_number("phi_L", phi_L)
+    if l0 is not None:
+        l0 = check_number("l0", l0, positive=True)
+        T = rod.EA * (rod.L / l0 - 1.0)  # the straight rod's: a first guess only
+    else:
+        check_tension(rod, T)
+    return _Controls(T=float(T), l0=l0, phi_L=None if phi_L is None else check_number("phi_L", phi_L),
+                     torque=None if torque is None else check_number("torque", torque))
+
+
+def _reference(curve, rod: RodParameters):
+    """``curve`` as a :class:`rodcont.curves.ReferenceCurve` (a ``KIND[:ARGS]`` string parsed for the span
+    ``rod.L``, as ``trace`` takes it), or None for the straight span."""
+    from ..curves import ReferenceCurve, parse_reference
+    if isinstance(curve, str):
+        return parse_reference(curve, rod.L)
+    if curve is not None and not isinstance(curve, ReferenceCurve):
+        raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve or a KIND[:ARGS] string, got {curve!r}")
+    return curve
+
+
+def first_mesh(rod: RodParameters, T: float, curve=None, wall=None, N_max: int = 4000) -> int:
+    """Subintervals of a first mesh that resolves the problem's own lengths: ``PER_LENGTH`` per bending
+    length ``sqrt(EI/|T|)``, per sag length ``(EI/w)^(1/3)`` and, in a conduit, per length ``(EI c/w)^(1/4)``
+    over which a heavy rod lifts off its wall (and 15 over the span at least)."""
+    lengths = [rod.L / 15 * PER_LENGTH]
+    if T != 0:
+        lengths.append(math.sqrt(rod.EI / abs(T)))
+    if rod.w > 0:
+        lengths.append((rod.EI / rod.w) ** (1 / 3))
+        if wall is not None:
+            lengths.append((rod.EI * wall.c_min / rod.w) ** 0.25)
+    length = float(curve.length) if curve is not None else rod.L
+    return int(min(max(15, math.ceil(PER_LENGTH * length / min(lengths))), N_max))
+
+
+def _system(rod, controls: _Controls, N: int, k: int, curve, wall, breakpoints=None) -> RodSystem:
+    """The rod system with the controls' end conditions (RodSystem builds the canonical ends: the model is
+    rebuilt with these when they differ)."""
+    sysm = RodSystem(rod, T=controls.T, N=N, k=k, curve=curve, wall=wall, breakpoints=breakpoints)
+    ends = controls.ends()
+    if not ends.is_default:
+        from ..rod import EulerianRod
+        sysm.model = EulerianRod(rod, sysm.curve, wall, ends=ends)
+        sysm.disc = sysm.model.discretise(N, k, breakpoints=breakpoints)
+    sysm.base = sysm.model.params(0.0, T=controls.T)
+    return sysm
+
+
+# --------------------------------------------------------------------------
+# Loading and refinement
+# --------------------------------------------------------------------------
+def _load(sysm: RodSystem, controls: _Controls, load_step: float, tol: float):
+    """Natural loading of the twist control from 0 to its target on ``sysm``'s mesh: ``(x, p, newton)``."""
+    model, disc = sysm.model, sysm.disc
+    idx = model.param_names.index(controls.load_name)
+    unit = 1.0 if controls.torque is None else model.rod.GJ / model.rod.L  # a torque step: load_step rad of twist
+    p = sysm.base.copy()
+    p[idx] = 0.0
+    x = model.initial_guess(disc, controls.T)
+    if sysm.wall is not None:
+        x = settle_in_conduit(sysm, x, p, tol)
+    r = disc.newton(x, p, tol=tol)
+    if not r.converged:
+        raise ConvergenceError(f"no equilibrium found at {controls.load_name} = 0 ({_axial_text(controls)}): "
+                               f"{r.message}")
+    target = controls.target
+    x, done = r.x, 0.0
+    step = math.copysign(load_step * unit, target) if target else load_step * unit
+    while done != target:
+        nxt = target if (done + step - target) * math.copysign(1.0, step) > 0 else done + step
+        p[idx] = nxt
+        r = disc.newton(x, p, tol=tol)
+        if r.converged:
+            x, done = r.x, nxt
+        else:
+            step *= 0.5
+            if abs(step) < load_step * unit / 1024:
+                raise ConvergenceError(f"loading stopped at {controls.load_name} = {done:.10g} (a fold of the "
+                                       f"branch is likely just beyond; use 'rodcont trace'): {r.message}")
+    return x, p, r
+
+
+def _axial_text(controls: _Controls) -> str:
+    return f"T = {controls.T:g}" if controls.l0 is None else f"l0 = {controls.l0:g}"
+
+
+@dataclass
+class _Check:
+    """The estimates of one solution on its mesh, against the guards."""
+
+    error: float
+    side_force_error: float
+    penetration: float
+
+    def ratio(self, max_error: float, max_side_force_error: float) -> float:
+        """How far the worse of the two error estimates is above its guard (<= 1: within)."""
+        sf = 0.0 if math.isnan(self.side_force_error) else self.side_force_error / max_side_force_error
+        return max(self.error / max_error, sf)
+
+
+def _check(sysm: RodSystem, x: np.ndarray) -> _Check:
+    from ..mesh import ErrorEstimator
+    wall = sysm.wall is not None
+    try:
+        est = ErrorEstimator(sysm, watch_side_force=wall)
+    except TypeError:  # the estimator's newer spelling of the same watch
+        est = ErrorEstimator(sysm, watch=wall)
+    err = est.estimate(x, sysm.value())
+    pen = sf = math.nan
+    if wall:
+        from ..contact import penetration
+        pen = penetration(sysm.model, sysm.disc, x, sysm.base)
+        sf = getattr(est, "side_force_error", None)
+        sf = est.watched.get("side_force", math.nan) if sf is None else sf
+    return _Check(err, sf, pen)
+
+
+def _refined(sysm: RodSystem, x: np.ndarray, check: _Check, settings: dict, controls, load_step, tol):
+    """The solution on a mesh adapted to it (:func:`rodcont.mesh.adapted_mesh`): ``(system, x, newton)``."""
+    from ..mesh import adapted_mesh
+    ratio = check.ratio(settings["max_error"], settings["max_side_force_error"])
+    indicator = sysm.interval_defect(x, sysm.value())
+    b = adapted_mesh(sysm.disc.breakpoints, indicator, sysm.disc.k, ratio * settings["max_error"],
+                     settings["max_error"] / 4, N_max=settings["N_max"])
+    new = sysm.with_mesh(sysm.conform(b))
+    r = new.disc.newton(new.disc.transfer(x, sysm.disc), new.base, tol=tol)
+    if r.converged:
+        return new, r.x, r
+    x, p, r = _load(new, controls, load_step, tol)  # the carried solution did not converge: load anew
+    return new, x, r
+
+
+def _adapt(sysm, x, r, controls, settings, load_step, tol, notes: list):
+    """Stiffen the contact law past the penetration guard, refine the mesh past the error guards: at most
+    eight rounds. Returns ``(system, x, newton, check)``; ``notes`` says what was stiffened."""
+    from ..contact import MAX_PENETRATION
+    for _ in range(8):
+        check = _check(sysm, x)
+        if sysm.wall is not None and check.penetration > MAX_PENETRATION:
+            P0 = sysm.model.contact_scale
+            P = P0 * check.penetration / (MAX_PENETRATION / 10)
+            x = stiffen_contact(sysm, x, sysm.base, P, tol)
+            notes.append(f"the contact law was stiffened from force_scale {P0:.4g} to {P:.4g}: the rod sat "
+                         f"{check.penetration:.2g} of the clearance inside the wall (guard {MAX_PENETRATION:g})")
+            continue
+        ratio = check.ratio(settings["max_error"], settings["max_side_force_error"])
+        if ratio <= 1.0 or not settings["adapt"] or sysm.disc.N >= settings["N_max"]:
+            return sysm, x, r, check
+        sysm, x, r = _refined(sysm, x, check, settings, controls, load_step, tol)
+    return sysm, x, r, _check(sysm, x)
+
+
+def _judge(sysm: RodSystem, check: _Check, settings: dict) -> list:
+    """Refuse a result far above its guards (:class:`AccuracyError`; with ``strict`` off, warn); the warnings
+    for one just above."""
+    from ..contact import MAX_PENETRATION
+    N = sysm.disc.N
+    where = (f"N = {N}" + (" (N_max reached: raise N_max)" if settings["adapt"] and N >= settings["N_max"]
+                           else "" if settings["adapt"] else " (a uniform mesh: raise N or let it adapt)"))
+    said = []
+    if sysm.wall is not None and check.penetration > MAX_PENETRATION and settings["strict"]:
+        raise AccuracyError(f"the rod sits {check.penetration:.2g} of the clearance inside the wall (guard "
+                            f"{MAX_PENETRATION:g}) with the contact law's force scale "
+                            f"{sysm.model.contact_scale:.4g}: give a larger force_scale in the conduit file")
+    for name, value, guard in (("estimated error", check.error, settings["max_error"]),
+                               ("side force's estimated error", check.side_force_error,
+                                settings["max_side_force_error"])):
+        if not value <= FAR_ABOVE * guard and not math.isnan(value) and settings["strict"]:
+            raise AccuracyError(f"the {name} {value:.2g} is far above its guard {guard:g} on {where}: "
+                                f"the result is not printed")
+        if not value <= guard and not math.isnan(value):
+            said.append(f"the {name} {value:.2g} exceeds its guard {guard:g} on {where}")
+    return said
+
+
+def _outputs(sysm: RodSystem, x: np.ndarray, controls: _Controls) -> dict:
+    """Every control and response: ``T``, ``gamma``, ``phi_L``, ``torque``, ``l0`` and the model's outputs."""
+    p = sysm.disc.full_params(x, sysm.base)
+    o = sysm.model.outputs(sysm.disc, x, p)
+    rod = sysm.rod
+    out = dict(T=float(p[1]), gamma=rod.gamma(float(p[1])) if rod.w > 0 else math.nan, phi_L=float(p[0]),
+               **{key: o[key] for key in ("stretch", "torque", "l0", "helical_waves", "min_alignment", "defect",
+                                          "torque_spread", "alpha_min")})
+    out["alpha_min"] = sysm.model.stretch_factor_min(sysm.disc, x, p)
+    out["N"] = sysm.disc.N
+    if sysm.wall is not None:
+        c = sysm.model.contact(sysm.disc, x, p)
+        out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
+                   max_pressure=float(c["pressure"].max()), force_scale=sysm.model.contact_scale)
+    return out
+
+
+_ACCEPTED = ("gamma", "phi_L", "rod", "N", "k", "load_step", "tol", "T", "curve", "wall", "torque", "l0", "adapt",
+             "max_error", "max_side_force_error", "N_max", "strict")
+
+
+def solve_equilibrium(gamma: float | None = None, phi_L: float | None = None, rod: RodParameters | None = None,
+                      N: int | None = None, k: int = 5, load_step: float = 0.5, tol: float = 1e-10,
+                      T: float | None = None, curve=None, wall=None, *, torque: float | None = None,
+                      l0: float | None = None, adapt: bool = True, max_error: float = 1e-6,
+                      max_side_force_error: float = 1e-3, N_max: int = 4000, strict: bool | None = None,
+                      **unknown) -> Equilibrium:
+    """The equilibrium for one axial control (``gamma``, ``T = gamma w L``, or the unstressed length ``l0``,
+    which makes ``T`` an unknown) and one twist control (the end rotation ``phi_L``, or the end torque
+    ``torque``, which makes ``phi_L`` an unknown), reached by loading the twist control up from 0 in steps
+    (``load_step`` radians of rotation, or ``load_step GJ / L`` of torque; a step that fails is halved, down
+    to 1/1024 of it).
+
+    ``N``: the first mesh (default: :func:`first_mesh`, from the problem's lengths); with ``adapt`` the
+    mesh is refined (up to ``N_max``) until the estimated error is below ``max_error`` and, in a conduit
+    (``wall``), the side force's below ``max_side_force_error``. A result more than ``FAR_ABOVE`` times
+    above either is refused (:class:`AccuracyError`; ``strict``, default ``adapt``: on a mesh kept fixed
+    on purpose, ``adapt=False``, such a result is returned with a warning), one just above is returned with
+    a warning. In a
+    conduit whose wall gives no ``force_scale`` it is chosen from the problem
+    (:func:`rodcont.contact.default_force_scale`), and stiffened when the rod sits deeper than
+    :data:`rodcont.contact.MAX_PENETRATION` of the clearance in the wall.
+    """
+    if unknown:
+        hint = " (the end rotation is phi_L)" if "phi" in unknown else ""
+        raise TypeError(f"rodcont.solve() got unexpected keyword argument(s) {', '.join(map(repr, unknown))}"
+                        f"{hint}; it accepts {', '.join(_ACCEPTED)}")
+    rod = RodParameters() if rod is None else rod
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    controls = _controls(rod, gamma, T, l0, phi_L, torque)
+    curve = _reference(curve, rod)
     load_step = check_number("load_step", load_step, positive=True)
-    N = check_number("N", N, integer=True)
+    if abs(controls.target) / (load_step * (1.0 if torque is None else rod.GJ / rod.L)) > 1e5:
+        raise ValueError(f"load_step = {load_step:g} would take more than 1e5 steps to reach "
+                         f"{controls.load_name} = {controls.target:g}")
+    for name, flag in (("adapt", adapt), ("strict", strict)):
+        if not (isinstance(flag, (bool, np.bool_)) or (name == "strict" and flag is None)):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    if not (isinstance(N_max, (int, np.integer)) and not isinstance(N_max, bool) and N_max >= 1):
+        raise ValueError(f"N_max must be an integer >= 1, got {N_max!r}")
+    settings = dict(adapt=bool(adapt), max_error=check_number("max_error", max_error, positive=True),
+                    max_side_force_error=check_number("max_side_force_error", max_side_force_error, positive=True),
+                    N_max=check_number("N_max", N_max, integer=True),
+                    strict=bool(adapt if strict is None else strict))
     k = check_number("k", k, integer=True)
     tol = check_number("tol", tol, positive=True)
-    if abs(phi_L) / load_step > 1e5:
-        raise ValueError(f"load_step = {load_step:g} would take more than 1e5 steps to reach phi_L = {phi_L:g}")
-    if not math.isfinite(T):
-        raise ValueError(f"gamma = {gamma:g} gives a tension that is not finite")
-    check_tension(rod, T)
-    sysm = RodSystem(rod, T=T, N=N, k=k, curve=curve, wall=wall)
+    P_goal = None
+    if wall is not None:
+        from ..contact import Wall, default_force_scale
+        if not isinstance(wall, Wall):
+            raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        P = default_force_scale(rod, controls.T, curve, wall)
+        if wall.force_scale is not None and wall.force_scale > P:
+            # a law stiffer than the problem's own scale: reached from that one by a homotopy (seen from the
+            # straight guess it stalls Newton, as a small eps does)
+            P_goal = float(wall.force_scale)
+        if wall.force_scale is None or P_goal is not None:
+            wall = dataclasses.replace(wall, force_scale=P)
+    N = first_mesh(rod, controls.T, curve, wall, settings["N_max"]) if N is None else check_number("N", N, integer=True)
+    if not 1 <= N <= settings["N_max"]:
+        raise ValueError(f"N = {N} must lie in 1 .. N_max = {settings['N_max']} (raise N_max for a larger mesh)")
     with np.errstate(all="ignore"):
-        x = sysm.model.initial_guess(sysm.disc, sysm.base[1])
-        if wall is not None:
-            x = settle_in_conduit(sysm, x, sysm.params(0.0), tol)
-        r = sysm.disc.newton(x, sysm.params(0.0), tol=tol)
-        if not r.converged:
-            raise ConvergenceError(f"no equilibrium found at phi_L = 0 (T = {T:g}): {r.message}")
-        x, done, step = r.x, 0.0, math.copysign(load_step, phi_L) if phi_L else load_step
-        while done != phi_L:
-            target = done + step
-            if (target - phi_L) * math.copysign(1.0, step) > 0:
-                target = phi_L
-            r = sysm.disc.newton(x, sysm.params(target), tol=tol)
-            if r.converged:
-                x, done = r.x, target
-            else:
-                step *= 0.5
-                if abs(step) < load_step / 1024:
-                    raise ConvergenceError(f"loading stopped at phi_L = {done:.10g} (a fold of the branch is "
-                                           f"likely just beyond; use 'rodcont trace'): {r.message}")
-        out = sysm.outputs(x, phi_L)
-    out["alpha_min"] = sysm.model.stretch_factor_min(sysm.disc, x, sysm.params(phi_L))
-    check_physical(out, f"T = {T:g}, phi_L = {phi_L:g}")
-    return Equilibrium(out, x, sysm, r)
+        sysm = _system(rod, controls, N, k, curve, wall)
+        x, sysm.base, r = _load(sysm, controls, load_step, tol)
+        if P_goal is not None:
+            x = stiffen_contact(sysm, x, sysm.base, P_goal, tol)
+        notes: list = []
+        sysm, x, r, check = _adapt(sysm, x, r, controls, settings, load_step, tol, notes)
+        said = _judge(sysm, check, settings)
+        out = _outputs(sysm, x, controls)
+    where = ", ".join(f"{n} = {out[n]:g}" for n in ("T", "phi_L"))
+    check_physical(out, where)
+    for s in said:
+        warnings.warn(s, RuntimeWarning, stacklevel=2)
+    return Equilibrium(out, x, sysm, r, check.error, check.side_force_error, said, notes)
 
 
 def first_unstable_tension(rod: RodParameters, stable, unstable: float, N: int = 15, wall=None,
@@ -164,7 +498,9 @@ def first_unstable_tension(rod: RodParameters, stable, unstable: float, N: int =
     """
     from ..stability import unstable_modes
     stable = [float(T) for T in stable]
-    x = solve_equilibrium(None, 0.0, rod, N=N, T=stable[0], wall=wall).x
+    with np.errstate(all="ignore"):  # the start on this very mesh and law: carried to each force by Newton
+        x = _load(_system(rod, _controls(rod, None, stable[0], None, 0.0, None), N, 5, None, wall),
+                  _controls(rod, None, stable[0], None, 0.0, None), 0.5, 1e-10)[0]
     at: dict = {}
 
     def count(T: float, start: np.ndarray) -> int:

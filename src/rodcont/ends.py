@@ -1,0 +1,227 @@
+"""End conditions of the rod, as objects chosen per end.
+
+Each end ``S = 0`` and ``S = L`` (the end of the reference curve) carries one
+condition of each kind it needs:
+
+* position: :class:`Clamp` (``Delta = Delta' = 0``: on the reference curve, tangent to it);
+* twist: :class:`Rotation` (``phi = 0`` at ``S = 0``, the datum; ``phi = phi_L - beta`` at ``S = L``,
+  ``beta`` the turn of the reference frame between the ends) or, at ``S = L``, :class:`Torque`
+  (``m(L) = M``, the parameter ``torque``; ``phi_L`` becomes an unknown, solved for and read from
+  the solution, with ``phi(L) = phi_L - beta`` defining it);
+* axial, at one end: :class:`Tension` (``F . K3 = T`` there, the parameter ``T``) or, at ``S = L``,
+  :class:`UnstressedLength` (``int n / alpha dS = l0``, the parameter ``l0``: ``T`` becomes an unknown,
+  still defined as ``F . K3(L)``; an integral condition of the collocation core).
+
+:class:`RodEnds` holds the two ends, checks that the conditions close the
+problem (8 position, 2 twist, 1 axial condition, plus one per freed parameter
+less one per integral condition) and assembles ``bc``: the rows grouped by kind
+(positions, twists, axial), start before end: for the default ends exactly the
+canonical problem's conditions in its order. ``affine`` only when every
+condition is affine in the end jets and the parameters.
+
+A new condition (a torque at the bit, a force at a free end) is one subclass:
+``kind``; an affine one lists its rows ``z[j] - (p[q] + offset)`` as ``terms``
+(evaluated for all such rows at once), any other sets ``affine = False`` and
+writes ``rows(model, z, p, end)`` (analytic in the jet ``z``, which may carry a
+trailing batch axis); and the parameter it adds (``param``, with its value) or
+frees (``frees``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class EndCondition:
+    """One condition at one end (module docstring)."""
+
+    kind = ""           # "position", "twist" or "axial"
+    affine = True       # affine in the end jet and the parameters
+    param: str | None = None   # a parameter it adds to the model's parameter vector (its value: ``value``)
+    frees: str | None = None   # a parameter it makes an unknown
+    ends = (0, 1)       # the ends it may sit at
+
+    @property
+    def value(self) -> float:
+        return 0.0
+
+    def terms(self, model, end: int) -> list:
+        """The rows of an affine condition as ``(jet index, parameter index or None, offset)``: the row is
+        ``z[jet] - (p[parameter] + offset)`` (``z[jet] - offset`` without a parameter)."""
+        raise NotImplementedError
+
+    def rows(self, model, z, p, end: int) -> list:
+        """The condition's rows at the end jet ``z``."""
+        return [z[j] - ((p[q] if q is not None else 0.0) + off) for j, q, off in self.terms(model, end)]
+
+    def integrand(self, model, S, z, p):
+        """``q(S)`` of an integral condition ``int q dS = 0``, or None."""
+        return None
+
+
+@dataclass(frozen=True)
+class Clamp(EndCondition):
+    """``Delta1 = Delta1' = Delta2 = Delta2' = 0``: the end on the reference curve, tangent to it."""
+
+    kind = "position"
+
+    def terms(self, model, end):
+        from .rod import Jet
+        return [(Jet.D1[0], None, 0.0), (Jet.D1[1], None, 0.0), (Jet.D2[0], None, 0.0), (Jet.D2[1], None, 0.0)]
+
+
+@dataclass(frozen=True)
+class Rotation(EndCondition):
+    """The section's rotation prescribed: ``phi(0) = 0`` (the datum), ``phi(L) = phi_L - beta``."""
+
+    kind = "twist"
+
+    def terms(self, model, end):
+        from .rod import Jet
+        if end == 0:
+            return [(Jet.PHI[0], None, 0.0)]
+        return [(Jet.PHI[0], 0, -model.twist_offset)]
+
+
+@dataclass(frozen=True)
+class Torque(EndCondition):
+    """The end torque prescribed, ``m(L) = M`` (parameter ``torque``, value ``M``); the end rotation ``phi_L``
+    is an unknown (``phi(L) = phi_L - beta``), read from the solution."""
+
+    M: float = 0.0
+    kind = "twist"
+    affine = False
+    param = "torque"
+    frees = "phi_L"
+    ends = (1,)
+
+    @property
+    def value(self) -> float:
+        return float(self.M)
+
+    def terms(self, model, end):
+        return Rotation().terms(model, end)
+
+    def rows(self, model, z, p, end):
+        m = model.end_torque(z, p, end)
+        return super().rows(model, z, p, end) + [m - p[model.param_names.index("torque")]]
+
+
+@dataclass(frozen=True)
+class Tension(EndCondition):
+    """The axial force prescribed at the end: ``F . K3 = T`` (parameter ``T``)."""
+
+    kind = "axial"
+
+    def terms(self, model, end):
+        from .rod import Jet
+        return [(Jet.F[2], 1, 0.0)]
+
+
+@dataclass(frozen=True)
+class UnstressedLength(EndCondition):
+    """The rod's unstressed length fixed, ``int_0^L n / alpha dS = l0`` (parameter ``l0``); the tension
+    ``T = F . K3(L)`` is an unknown, read from the solution."""
+
+    l0: float = 1.0
+    kind = "axial"
+    param = "l0"
+    frees = "T"
+    ends = (1,)
+
+    @property
+    def value(self) -> float:
+        return float(self.l0)
+
+    def terms(self, model, end):
+        return Tension().terms(model, end)
+
+    def integrand(self, model, S, z, p):
+        _, alpha, n, _ = model._axial_quantities(S, z, p)
+        a, b = model.interval
+        return n / alpha - p[model.param_names.index("l0")] / (b - a)
+
+
+def _check_condition(c, end):
+    if not isinstance(c, EndCondition):
+        raise TypeError(f"an end condition must be a rodcont.ends.EndCondition (Clamp(), Rotation(), Torque(M), "
+                        f"Tension(), UnstressedLength(l0)), got {c!r}")
+    if end not in c.ends:
+        raise ValueError(f"{type(c).__name__} is available at S = L only (the rotation datum phi = 0 and the "
+                         f"clamp are at S = 0)")
+    for name in ("M", "l0"):
+        v = getattr(c, name, None)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating))
+                              or not np.isfinite(v)):
+            raise TypeError(f"{type(c).__name__}.{name} must be a finite number, got {v!r}")
+    if isinstance(c, UnstressedLength) and not c.l0 > 0:
+        raise ValueError(f"the unstressed length l0 must be positive, got {c.l0!r}")
+
+
+@dataclass(frozen=True)
+class RodEnds:
+    """The conditions at ``S = 0`` (``start``) and ``S = L`` (``end``); default: the canonical problem (both
+    ends clamped, ``phi(0) = 0``, ``phi(L) = phi_L``, ``F . K3(L) = T``)."""
+
+    start: tuple = (Clamp(), Rotation())
+    end: tuple = (Clamp(), Rotation(), Tension())
+
+    def __post_init__(self):
+        for name in ("start", "end"):
+            v = getattr(self, name)
+            if isinstance(v, EndCondition):
+                v = (v,)
+            if not isinstance(v, (tuple, list)):
+                raise TypeError(f"RodEnds.{name} must be a tuple of end conditions, got {v!r}")
+            object.__setattr__(self, name, tuple(v))
+        for end, conds in enumerate((self.start, self.end)):
+            kinds = []
+            for c in conds:
+                _check_condition(c, end)
+                kinds.append(c.kind)
+            for kind in set(kinds):
+                if kinds.count(kind) > 1:
+                    raise ValueError(f"two {kind} conditions at S = {'0' if end == 0 else 'L'}")
+            if "position" not in kinds:
+                raise ValueError(f"the end S = {'0' if end == 0 else 'L'} needs a position condition (Clamp())")
+            if "twist" not in kinds:
+                raise ValueError(f"the end S = {'0' if end == 0 else 'L'} needs a twist condition "
+                                 f"(Rotation(){' or Torque(M)' if end else ''})")
+        axial = [c for c in self.start + self.end if c.kind == "axial"]
+        if len(axial) != 1:
+            raise ValueError(f"one axial condition (Tension() or UnstressedLength(l0)) at one end, got {len(axial)}")
+
+    @property
+    def conditions(self) -> list:
+        """``(end, condition)`` in the order of the rows: positions, twists, axial; start before end."""
+        order = ("position", "twist", "axial")
+        return [(end, c) for kind in order for end, conds in enumerate((self.start, self.end))
+                for c in conds if c.kind == kind]
+
+    @property
+    def affine(self) -> bool:
+        return all(c.affine for _, c in self.conditions)
+
+    @property
+    def params(self) -> tuple:
+        """``(name, value)`` of the parameters the conditions add (after ``phi_L, T, w, EI, GJ, EA``)."""
+        return tuple((c.param, c.value) for _, c in self.conditions if c.param is not None)
+
+    @property
+    def frees(self) -> tuple:
+        """The parameters the conditions make unknowns."""
+        return tuple(c.frees for _, c in self.conditions if c.frees is not None)
+
+    @property
+    def has_integrals(self) -> bool:
+        return any(type(c).integrand is not EndCondition.integrand for _, c in self.conditions)
+
+    def find(self, cls):
+        """The condition of class ``cls`` (at either end), or None."""
+        return next((c for _, c in self.conditions if isinstance(c, cls)), None)
+
+    @property
+    def is_default(self) -> bool:
+        return self == RodEnds()
