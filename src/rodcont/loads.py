@@ -39,8 +39,9 @@ class Kinematics:
     (names ``model.param_names``), ``n = |r'|``, ``alpha = 1 + F.d3/EA`` (so the
     unstressed arclength is ``s' = n/alpha``), ``d3`` the tangent director, ``gK``
     the weight's direction in the local frame (``(3, 1)`` on the straight
-    reference, ``(3, npts)`` on a moving frame), ``cache`` shared by the loads of
-    one evaluation (the wall pressure, for a friction law).
+    reference, ``(3, npts)`` on a moving frame), ``deflection`` the rows
+    ``(Delta1, Delta2)`` of the jets, ``cache`` shared by the loads of one
+    evaluation (the wall pressure, for a friction law).
     """
 
     S: np.ndarray
@@ -50,13 +51,8 @@ class Kinematics:
     alpha: np.ndarray
     d3: np.ndarray
     gK: np.ndarray
+    deflection: tuple
     cache: dict = field(default_factory=dict)
-
-    @property
-    def deflection(self):
-        """``(Delta1, Delta2)``."""
-        from .rod import Jet
-        return self.z[Jet.D1[0]], self.z[Jet.D2[0]]
 
 
 class DistributedLoad:

@@ -132,6 +132,11 @@ def _cross_axial(r1, v):
     return out
 
 
+def _deflection(z):
+    """``(Delta1, Delta2)``: their rows of the jets."""
+    return z[Jet.D1[0]], z[Jet.D2[0]]
+
+
 def _equations(EF, EM, torque):
     """The six equations ``(6, npts)``: force balance (3), moment on ``K1, K2`` (2), torque (1).
     (Filled in place: ``np.stack`` of six rows costs more than the rows on a short rod.)"""
@@ -466,16 +471,23 @@ class EulerianRod:
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, self.gK[:, None]), Fp, EM, mp)
+        k = Kinematics(S, z, p, n, alpha, d3, self.gK[:, None], _deflection(z))
+        EF, EM, torque = self._add_loads(k, Fp, EM, mp)
         return _equations(EF, EM, torque / GJ)
 
     def _add_loads(self, k, EF, EM, torque):
         """The distributed loads (:mod:`rodcont.loads`) added to the force balance ``EF``, the moment
         balance ``EM`` (on ``K1, K2``) and the torque ``m'``: ``EF + sum f``, ``EM + sum l``, ``m' + sum l.d3``."""
+        owned = False  # EF may still be the caller's array: copied before the first write in place
         for load in self.loads:
             f = load.force(k)
-            if f is not None:
-                EF = EF + (np.stack(np.broadcast_arrays(*f)) if isinstance(f, tuple) else f)
+            if isinstance(f, tuple):  # three rows, added in place (a stacked copy cost 8 % of a wall's step)
+                if not owned:
+                    EF, owned = EF.astype(np.result_type(EF, *f)), True
+                for i in range(3):
+                    EF[i] += f[i]
+            elif f is not None:
+                EF, owned = EF + f, True
             moment = load.moment(k)
             if moment is not None:
                 EM = EM + moment[:2]
@@ -720,7 +732,7 @@ class EulerianRod:
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK), Ft, EM, mp)
+        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK, _deflection(z)), Ft, EM, mp)
         return _equations(EF, EM, torque / GJ)
 
     def _axial_curved(self, S, z, p):
