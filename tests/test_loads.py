@@ -283,3 +283,18 @@ def test_wrong_api_arguments_are_type_or_value_errors(kwargs):
     with pytest.raises((TypeError, ValueError)) as e:
         rodcont.solve(**args)
     assert not isinstance(e.value, AttributeError)
+
+
+def test_the_axial_force_may_be_prescribed_at_either_end():
+    """A rod hanging along its axis (weight along -K3, w = 2): F3' = w n / alpha with n = 1, alpha = 1 + F3/EA,
+    so F3 + F3^2/(2 EA) = w S + C. Prescribing F.K3 = T at S = 0 instead of S = L moves the constant:
+    C = T + T^2/(2 EA)."""
+    rod = RodParameters(w=2.0, EA=50.0, weight_direction=(-1.0, 0.0, 0.0))
+    T = 3.0
+    ends = RodEnds(start=(Clamp(), Rotation(), Tension()), end=(Clamp(), Rotation()))
+    model = EulerianRod(rod, ends=ends)
+    disc, x, p = _solve(model, T, 0.5)
+    S = np.linspace(0, 1, 11)
+    F3 = disc.evaluate(x, S, 5)
+    assert np.allclose(F3 + F3**2 / (2 * rod.EA), rod.w * S + T + T**2 / (2 * rod.EA), rtol=0, atol=1e-11)
+    assert np.max(np.abs([disc.evaluate(x, S, i) for i in (0, 1)])) < 1e-12  # it hangs straight
