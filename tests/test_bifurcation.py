@@ -47,23 +47,22 @@ class InLam:
 
 def test_bratu_fold_curve_is_exact():
     two = BratuTwoParam()
-    pts, _ = continuation(InLam(two, 0.0), np.zeros(two.disc.size), 0.0,
-                          ContinuationSettings(ds=0.2, ds_max=0.5, p_max=3.6, max_steps=60))
-    fold = next(q for q in pts if q.kind == "fold")
-    fp = FoldProblem(two, fold.x, fold.p, 0.0, v0=fold.tx)
-    assert abs(fp.test_function(fold.x, fold.p, 0.0)) < 1e-8
-    X0 = np.append(fold.x, fold.p)
+    res = continuation(InLam(two, 0.0), np.zeros(two.disc.size), 0.0,
+                       ContinuationSettings(ds=0.2, ds_max=0.5, p_max=3.6, max_steps=60), param="lam")
+    fold = res.point("F1")
+    fp = FoldProblem(two, fold["x"], fold["lam"], 0.0, v0=fold["direction"][0])
+    assert abs(fp.test_function(fold["x"], fold["lam"], 0.0)) < 1e-8
+    X0 = np.append(fold["x"], fold["lam"])
     s = ContinuationSettings(ds=0.1, ds_max=0.3, p_min=-1.0, p_max=1.0, max_steps=80, forced=(-0.5, 0.5),
                              detect_folds=False, detect_branch_points=False)
     for direction in (1, -1):
         s.direction = direction
-        pts2, reason = continuation(fp, X0, 0.0, s)
-        assert "bound" in reason
-        assert len(pts2) > 3
-        for q in pts2:
-            lam = q.x[-1]
-            assert lam == pytest.approx(bratu_exact_fold() * math.exp(-q.p), abs=1e-9), q.p
-        assert any(q.kind == "forced" for q in pts2)
+        res2 = continuation(fp, X0, 0.0, s, param="a")
+        assert "bound" in res2.stop_reason and res2.status == "bound"
+        assert len(res2) > 3
+        for X, a in zip(res2.coefficients, res2.table["a"]):
+            assert X[-1] == pytest.approx(bratu_exact_fold() * math.exp(-a), abs=1e-9), a
+        assert any(sp.kind == "forced" for sp in res2.special)
 
 
 class Elastica:
@@ -86,22 +85,21 @@ class Elastica:
 def test_pitchfork_located_and_switched():
     el = Elastica()
     s = ContinuationSettings(ds=0.5, ds_max=1.0, p_min=0.0, p_max=12.0, max_steps=50)
-    pts, _ = continuation(el, np.zeros(el.disc.size), 1.0, s)
-    bps = [q for q in pts if q.kind == "branch_point"]
-    assert len(bps) == 1
-    bp = bps[0]
-    assert bp.p == pytest.approx(math.pi**2, abs=1e-8)
-    tr = Tracker(el, bp.x, bp.p, s)
-    _, J, (Fp,) = el.disc.linearise(bp.x, [bp.p], [0])
-    tx, tp = bifurcating_direction(J, Fp, bp.tx, bp.tp, tr.wx, tr.wp)
+    res = continuation(el, np.zeros(el.disc.size), 1.0, s, param="lam")
+    assert len(res.branch_points) == 1
+    bp = res.point("BP1")
+    assert bp["lam"] == pytest.approx(math.pi**2, abs=1e-8)
+    tr = Tracker(el, bp["x"], bp["lam"], s)
+    _, J, (Fp,) = el.disc.linearise(bp["x"], [bp["lam"]], [0])
+    tx, tp = bifurcating_direction(J, Fp, *bp["direction"], tr.wx, tr.wp)
     # the new direction is orthogonal to the trivial branch and points into u != 0
     assert abs(tp) < 1e-6 and np.max(np.abs(el.disc.evaluate(tx, np.linspace(0, 1, 11), 0))) > 0
     s2 = ContinuationSettings(ds=0.1, ds_max=0.5, p_min=0.0, p_max=14.0, max_steps=40, detect_branch_points=False)
-    new, reason = continuation(el, bp.x, bp.p, s2, tangent0=(tx, tp), exact_start=True)
+    new = continuation(el, bp["x"], bp["lam"], s2, tangent0=(tx, tp), exact_start=True, param="lam")
     assert len(new) > 10
     amp = []
-    for q in new[3:]:
-        umid = float(el.disc.evaluate(q.x, 0.5, 0))
+    for x, lam in list(zip(new.coefficients, new.table["lam"]))[3:]:
+        umid = float(el.disc.evaluate(x, 0.5, 0))
         amp.append(abs(umid))
-        assert q.p == pytest.approx(4 * ellipk(math.sin(umid / 2) ** 2) ** 2, abs=1e-8)
+        assert lam == pytest.approx(4 * ellipk(math.sin(umid / 2) ** 2) ** 2, abs=1e-8)
     assert max(amp) > 1.0  # well onto the buckled branch

@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 from rodcont.collocation import BVProblem, Collocation
 from rodcont.continuation import ContinuationSettings, Event, continuation
 from rodcont.linalg import LU, bordered
+from rodcont.result import Status
 
 BRATU_FOLD = 3.513830719125  # lambda* of u'' + lambda e^u = 0, u(0) = u(1) = 0
 
@@ -47,31 +48,36 @@ def test_bratu_closed_form_matches_published_value():
 def test_bratu_fold_located():
     pb = Bratu()
     s = ContinuationSettings(ds=0.1, ds_max=0.5, p_max=3.6, p_min=-0.1, max_steps=200)
-    pts, reason = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid,
-                               events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True)])
-    folds = [q for q in pts if q.kind == "fold"]
-    assert len(folds) == 1
-    assert folds[0].p == pytest.approx(bratu_exact_fold(), abs=1e-9)
-    assert abs(folds[0].tp) < 1e-10
+    res = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid, param="lam",
+                       events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True, label="u_mid_4")])
+    folds = res.folds
+    assert len(folds) == 1 and folds[0]["label"] == "F1"
+    assert folds[0]["lam"] == pytest.approx(bratu_exact_fold(), abs=1e-9)
+    assert folds["lam"][0] == folds[0]["lam"] and res.point("F1")["lam"] == folds[0]["lam"]
+    assert abs(res.tangents[folds[0]["index"]][-1]) < 1e-10
     # the upper branch is reached: u(1/2) grows past the fold and the event stops the trace there
-    assert reason == "u_mid = 4"
-    assert pts[-1].data["u_mid"] == pytest.approx(4.0, abs=1e-9)
+    assert res.stop_reason == "u_mid = 4" and res.status == Status.EVENT
+    assert res.table["u_mid"][-1] == pytest.approx(4.0, abs=1e-9)
+    end = res.special[-1]
+    assert (end.kind, end.label, end.message, end.index) == ("event", "u_mid_4", "u_mid = 4", len(res) - 1)
+    assert res.table["kind"][-1] == "event:u_mid_4"
     # the arclength increases along the branch and p turns exactly once
-    arc = np.array([q.arclength for q in pts if q.kind == "regular"])
+    arc = np.array([a for a, k in zip(res.table["arclength"], res.table["kind"]) if k == "regular"])
     assert np.all(np.diff(arc) > 0)
 
 
 def test_forced_points_and_bounds():
     pb = Bratu()
     s = ContinuationSettings(ds=0.3, ds_max=0.5, p_max=3.0, max_steps=100, forced=(0.5, 1.25, 2.0))
-    pts, reason = continuation(pb, np.zeros(pb.disc.size), 0.0, s)
-    forced = [q.p for q in pts if q.kind == "forced"]
+    res = continuation(pb, np.zeros(pb.disc.size), 0.0, s)
+    forced = [sp.value for sp in res.special if sp.kind == "forced"]
     assert forced == pytest.approx([0.5, 1.25, 2.0], abs=1e-12)
-    assert pts[-1].kind == "bound" and pts[-1].p == pytest.approx(3.0, abs=1e-12)
-    assert "p_max" in reason
+    assert [sp.label for sp in res.special if sp.kind == "forced"] == ["P1", "P2", "P3"]
+    assert res.table["kind"][-1] == "bound" and res.table["p"][-1] == pytest.approx(3.0, abs=1e-12)
+    assert "p_max" in res.stop_reason and res.status == Status.BOUND
     # each forced point solves the problem at that parameter
-    for q in pts:
-        assert np.max(np.abs(pb.residual(q.x, q.p))) < 1e-9
+    for x, p in zip(res.coefficients, res.table["p"]):
+        assert np.max(np.abs(pb.residual(x, p))) < 1e-9
 
 
 class Pitchfork:
@@ -87,11 +93,11 @@ class Pitchfork:
 
 def test_branch_point_detected_and_located():
     s = ContinuationSettings(ds=0.13, ds_max=0.2, p_min=-1.0, p_max=1.0, max_steps=100)
-    pts, reason = continuation(Pitchfork(), np.array([0.0, -1.0]), -1.0, s)
-    bps = [q for q in pts if q.kind == "branch_point"]
-    assert len(bps) == 1
-    assert abs(bps[0].p) < 1e-9
-    assert not [q for q in pts if q.kind == "fold"]
+    res = continuation(Pitchfork(), np.array([0.0, -1.0]), -1.0, s)
+    bps = res.branch_points
+    assert len(bps) == 1 and res.point("BP1")["index"] == bps[0]["index"]
+    assert abs(bps[0]["p"]) < 1e-9 and bps[0]["located"]
+    assert not res.folds
 
 
 def test_det_sign_from_sparse_lu():
@@ -121,8 +127,9 @@ def test_step_size_collapse_is_a_stop_reason_not_an_exception():
         def tangent(self, x, p):
             return sp.csc_matrix([[2 * x[0]]]), np.array([2 * p])
 
-    pts, reason = continuation(Nowhere(), np.array([0.3]), 0.0, ContinuationSettings())
-    assert pts == [] and "no convergence at the starting point" in reason
+    res = continuation(Nowhere(), np.array([0.3]), 0.0, ContinuationSettings())
+    assert len(res) == 0 and "no convergence at the starting point" in res.stop_reason
+    assert res.status == Status.START_FAILED
 
 
 def test_settings_are_validated():
@@ -152,10 +159,10 @@ def test_an_event_just_ahead_of_the_start_is_located_to_a_reachable_tolerance():
         return 0.5 + 1e-9 - q.p - 3.0 * (q.p - 0.5) ** 2
 
     s = ContinuationSettings(ds=0.05, ds_max=0.05, max_steps=10)
-    pts, reason = continuation(_Line(), np.array([0.5]), 0.5, s, events=[Event("g", g, stop=True)])
-    assert reason == "g"
+    res = continuation(_Line(), np.array([0.5]), 0.5, s, events=[Event("g", g, stop=True)])
+    assert res.stop_reason == "g"
     root = 0.5 + (-1.0 + math.sqrt(1.0 + 12e-9)) / 6.0
-    assert pts[-1].p == pytest.approx(root, abs=1e-14)
+    assert res.table["p"][-1] == pytest.approx(root, abs=1e-14)
     assert len(calls) <= 8
 
 
@@ -200,21 +207,23 @@ def test_every_point_is_within_the_tolerance_and_its_tangent_within_near_sqrt_to
     from rodcont.continuation import NEAR
     pb = Bratu(N=12)
     s = ContinuationSettings(ds=0.1, ds_max=0.5, p_max=3.6, p_min=-0.1, max_steps=200)
-    pts, _ = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid,
-                          events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True)])
-    regular = [q for q in pts if q.kind == "regular"]
+    res = continuation(pb, np.zeros(pb.disc.size), 0.0, s, monitor=pb.u_mid,
+                       events=[Event("u_mid = 4", lambda q: 4.0 - q.data["u_mid"], stop=True)])
+    regular = [i for i, k in enumerate(res.table["kind"]) if k == "regular"]
     assert len(regular) > 10
     worst_x = worst_t = 0.0
-    for q in regular:
-        y = np.append(q.x, q.p)
-        if abs(q.tp) > 0.05:  # Newton at fixed lambda: regular away from the fold
-            r = pb.disc.newton(q.x, [q.p], tol=1e-14)
+    for i in regular:
+        x, p, t0 = res.coefficients[i], res.table["p"][i], res.tangents[i]
+        tx, tp = t0[:-1], t0[-1]
+        y = np.append(x, p)
+        if abs(tp) > 0.05:  # Newton at fixed lambda: regular away from the fold
+            r = pb.disc.newton(x, [p], tol=1e-14)
             assert r.converged
-            worst_x = max(worst_x, np.max(np.abs(r.x - q.x)) / (1 + np.max(np.abs(y))))
-        F, J, (Fp,) = pb.disc.linearise(q.x, [q.p], [0])
-        t = LU(bordered(J, Fp, q.tx, q.tp)).solve(np.append(np.zeros(q.x.size), 1.0))
-        t /= np.linalg.norm(t) * np.sign(t @ np.append(q.tx, q.tp))
-        worst_t = max(worst_t, np.max(np.abs(t - np.append(q.tx, q.tp) / np.linalg.norm(np.append(q.tx, q.tp)))))
+            worst_x = max(worst_x, np.max(np.abs(r.x - x)) / (1 + np.max(np.abs(y))))
+        F, J, (Fp,) = pb.disc.linearise(x, [p], [0])
+        t = LU(bordered(J, Fp, tx, tp)).solve(np.append(np.zeros(x.size), 1.0))
+        t /= np.linalg.norm(t) * np.sign(t @ t0)
+        worst_t = max(worst_t, np.max(np.abs(t - t0 / np.linalg.norm(t0))))
     assert worst_x <= s.newton_tol
     assert worst_t <= 10 * NEAR * math.sqrt(s.newton_tol)
 
@@ -270,11 +279,12 @@ def test_a_branch_point_whose_test_function_jumps_is_bracketed_not_located():
         s = ContinuationSettings(ds=0.05, ds_max=ds_max, p_min=-1.0, p_max=1.5, max_steps=200)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # a crossing detected but not located, warned
-            pts, _ = continuation(Crossing(), np.array([1.0, -1.0]), -1.0, s)
+            res = continuation(Crossing(), np.array([1.0, -1.0]), -1.0, s)
         # (a bracketed branch point is a point near the crossing on either branch: here on the line, 1e-4 off)
-        assert pts[-1].p == 1.5 and max(abs(q.x[0] - q.p ** 2) for q in pts if q.located) < 1e-10
-        for q in pts:
-            if q.kind == "branch_point":
-                reported += 1
-                assert not q.located or abs(q.p) < 1e-9, (ds_max, q.p)
+        t = res.table
+        assert t["p"][-1] == 1.5 and max(abs(x[0] - p ** 2) for x, p, ok in zip(res.coefficients, t["p"], t["located"])
+                                         if ok) < 1e-10
+        for bp in res.branch_points:
+            reported += 1
+            assert not bp["located"] or abs(bp["p"]) < 1e-9, (ds_max, bp["p"])
     assert reported >= 2

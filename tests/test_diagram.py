@@ -99,7 +99,10 @@ def test_diagram_has_every_wave_adding_fold_once(diagram_g1):
     dg, path = diagram_g1
     folds = dg.folds
     ref = [PRIMARY[1.0]] + [SECONDARY[(1.0, n)] for n in (1, 2, 3)]
-    assert len(folds) == 4 and len(dg.branches) == 4
+    # five branches: the fifth from the interval of critical twists that straddles phi_max = 40 (38.12 to
+    # 46.42), seeded at 39.06, folds beyond the window
+    assert len(folds) == 4 and len(dg.branches) == 5 and not dg.branches[4].branch.folds
+    assert dg.branches[4].seed_phi == pytest.approx(0.5 * (dg.critical[-1] + 40.0), abs=1e-9)
     for f, r in zip(folds, ref):
         assert f["phi_L"] == pytest.approx(r["phi_L"], abs=1e-6)
         assert f["waves_after"] == f["waves_before"] + 1
@@ -114,8 +117,9 @@ def test_diagram_has_every_wave_adding_fold_once(diagram_g1):
 def test_diagram_file_layout_and_readers(diagram_g1, tmp_path, capsys):
     dg, path = diagram_g1
     d = rodcont.load_diagram(path)
-    assert d.attrs["kind"] == "diagram" and len(d.branches) == 4
+    assert d.attrs["kind"] == "diagram" and len(d.branches) == 5
     np.testing.assert_allclose(d.folds["phi_L"], [f["phi_L"] for f in dg.folds])
+    assert [(b.status_first, b.status) for b in d.branches] == [db.statuses for db in dg.branches]
     for name in ("branch", "phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index"):
         assert name in d.folds
     b1 = rodcont.load_branch(path, 1)
@@ -184,7 +188,9 @@ def test_sweep_of_diagrams(tmp_path, capsys):
                           "--out", str(tmp_path / "fam"), "--quiet"], capsys)
     assert code == 0, err
     d = rodcont.load_diagram(str(tmp_path / "fam" / "diagram_1.h5"))
-    assert len(d.branches) == 2 and (tmp_path / "fam" / "response_diagram.png").exists()
+    # the primary branch, the one seeded between the critical twists 13.83 and 21.70, and the one seeded
+    # in the interval that straddles phi_max = 22 (21.70 to 29.86)
+    assert len(d.branches) == 3 and (tmp_path / "fam" / "response_diagram.png").exists()
 
 
 def test_fold_curve_in_gamma_passes_through_the_lagrangian_folds(tmp_path):
@@ -194,10 +200,10 @@ def test_fold_curve_in_gamma_passes_through_the_lagrangian_folds(tmp_path):
     path = str(tmp_path / "g1.h5")
     rodcont.trace(1.0, stretch_max=0.3, out=path)
     res = fold_curve(rodcont.load_branch(path), 0, "gamma", 0.0, 5.0, forced=(0.5, 2.0))
-    at = {round(q.p, 12): q for q in res["points"] if q.kind in ("bound", "forced")}
+    at = {round(sp.value, 12): res.row_at(sp.index) for sp in res.special if sp.kind in ("bound", "forced")}
     for g in (0.0, 0.5, 2.0, 5.0):
-        assert at[g].data["phi_L"] == pytest.approx(PRIMARY[g]["phi_L"], abs=1e-8), g
-        assert at[g].data["stretch"] == pytest.approx(PRIMARY[g]["stretch"], abs=1e-7), g
+        assert at[g]["phi_L"] == pytest.approx(PRIMARY[g]["phi_L"], abs=1e-8), g
+        assert at[g]["stretch"] == pytest.approx(PRIMARY[g]["stretch"], abs=1e-7), g
 
 
 def test_a_diagram_branch_says_which_folds_it_detected_but_could_not_locate(tmp_path, capsys, monkeypatch):

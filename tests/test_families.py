@@ -28,13 +28,16 @@ def test_fold_curve_matches_one_parameter_traces(g1_n15, tmp_path):
     d = rodcont.load_branch(g1_n15)
     out = str(tmp_path / "locus.h5")
     res = fold_curve(d, 0, "gamma", 0.5, 1.5, out=out, forced=(0.75,))
-    pts = res["points"]
-    by_gamma = {round(q.p, 12): q for q in pts if q.kind in ("bound", "forced")}
+    by_gamma = {round(sp.value, 12): res.row_at(sp.index) for sp in res.special if sp.kind in ("bound", "forced")}
     for g in (0.5, 0.75, 1.5):
         q = by_gamma[g]
-        ref = trace(g, N=15, adapt=False, stretch_max=q.data["stretch"] + 0.05).folds[0]
+        ref = trace(g, N=15, adapt=False, stretch_max=q["stretch"] + 0.05).folds[0]
         for name in ("phi_L", "stretch", "torque", "l0"):
-            assert q.data[name] == pytest.approx(ref[name], abs=1e-8), (g, name)
+            assert q[name] == pytest.approx(ref[name], abs=1e-8), (g, name)
+    # read back, the file is the same result
+    back = rodcont.load_branch(out)
+    assert back.table["gamma"] == pytest.approx(res.table["gamma"], abs=0) and back.status == res.status
+    assert (back.message_first, back.message) == (res.message_first, res.message)
     # the file: branch-file conventions plus a dataset named after the parameter
     with h5py.File(out, "r") as f:
         assert f.attrs["param"] == "gamma"
@@ -49,11 +52,11 @@ def test_fold_curve_in_a_stiffness(g1_n15):
     """Continuing in EI (T fixed): at the ends of the range the fold is where a one-parameter trace puts it."""
     d = rodcont.load_branch(g1_n15)
     res = fold_curve(d, 0, "EI", 0.9, 1.1)
-    q = res["points"][-1]
-    assert q.kind == "bound" and q.p == pytest.approx(1.1)
+    q = res.row_at(-1)
+    assert q["kind"] == "bound" and q["EI"] == pytest.approx(1.1) and res.status == "bound"
     rod = rodcont.RodParameters(EI=1.1)
-    ref = trace(1.0, rod, N=15, stretch_max=q.data["stretch"] + 0.05).folds[0]
-    assert q.data["phi_L"] == pytest.approx(ref["phi_L"], abs=1e-8)
+    ref = trace(1.0, rod, N=15, stretch_max=q["stretch"] + 0.05).folds[0]
+    assert q["phi_L"] == pytest.approx(ref["phi_L"], abs=1e-8)
 
 
 def test_fold_curve_cli_and_plot(g1_n15, tmp_path, capsys):

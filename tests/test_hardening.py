@@ -270,8 +270,8 @@ def test_two_folds_inside_one_step_are_found():
         x0 = -rng.uniform(0.2, 0.6)
         s = ContinuationSettings(ds=0.1, ds_max=0.1, ds_min=1e-9, max_steps=200, p_min=-1, p_max=1,
                                  detect_branch_points=False)
-        pts, _ = continuation(Cubic(eps), np.array([x0]), x0**3 - eps * x0, s)
-        folds = sorted(q.p for q in pts if q.kind == "fold")
+        res = continuation(Cubic(eps), np.array([x0]), x0**3 - eps * x0, s)
+        folds = sorted(res.folds["p"])
         exact = 2 * eps / 3 * math.sqrt(eps / 3)
         if len(folds) == 2 and abs(folds[0] + exact) < 1e-9 and abs(folds[1] - exact) < 1e-9:
             found += 1
@@ -282,9 +282,10 @@ def test_a_point_not_located_to_tolerance_is_reported_as_bracketed():
     from rodcont.continuation import ContinuationSettings, continuation
     s = ContinuationSettings(ds=0.1, ds_max=0.1, max_steps=100, p_min=-1, p_max=1, locate_max_iter=1,
                              detect_branch_points=False)
-    pts, _ = continuation(Cubic(0.5), np.array([-1.0]), -1 + 0.5, s)
-    folds = [q for q in pts if q.kind == "fold"]
-    assert len(folds) == 2 and not any(q.located for q in folds)
+    res = continuation(Cubic(0.5), np.array([-1.0]), -1 + 0.5, s)
+    folds = res.folds
+    assert len(folds) == 2 and not any(folds["located"])
+    assert [sp.label for sp in res.special if not sp.located] == ["F1", "F2"]
 
 
 def test_fold_curve_stays_in_its_range_and_starts_on_an_adapted_mesh(tmp_path):
@@ -294,11 +295,12 @@ def test_fold_curve_stays_in_its_range_and_starts_on_an_adapted_mesh(tmp_path):
     d = rodcont.load_branch(path)
     assert d.point("F1")["breakpoints"].size - 1 > 15
     res = fold_curve(d, 0, "EI", 0.9, 1.1, max_steps=60)
-    ei = [q.p for q in res["points"]]
+    ei = res.table["EI"]
     assert min(ei) >= 0.9 - 1e-12 and max(ei) <= 1.1 + 1e-12
-    assert all("bound" in r or "guard" in r for r in res["stop_reasons"])
+    assert all("bound" in r or "guard" in r for r in (res.message_first, res.message))
+    assert {res.status_first, res.status} <= {"bound", "validity_guard", "accuracy_guard"}
     res = fold_curve(d, 0, "gamma", 2.0, 2.0000000001, max_steps=20)
-    assert all(2.0 - 1e-12 <= q.p <= 2.0000000001 + 1e-12 for q in res["points"])
+    assert all(2.0 - 1e-12 <= g <= 2.0000000001 + 1e-12 for g in res.table["gamma"])
 
 
 def test_restarts_use_the_requested_mesh_and_refuse_another_rod(g1, tmp_path, capsys):
@@ -524,8 +526,10 @@ def test_stored_strings_are_whole_and_settings_are_stored(g1, tmp_path):
     path = str(tmp_path / "v.h5")
     br = rodcont.trace(1.0, min_alignment=0.99, out=path)  # stops soon at the validity guard
     v = rodcont.load_branch(path)
-    assert v.branch["kind"][-1] == br.table["kind"][-1] and len(v.branch["kind"][-1]) > 100
-    assert v.attrs["stop_reason"] == br.stop_reason
+    assert v.branch["kind"][-1] == br.table["kind"][-1] == "event:validity_guard"
+    # the event's whole sentence is kept apart from its label, in memory and in the file
+    assert v.special[-1].message == br.special[-1].message and len(br.special[-1].message) > 100
+    assert v.attrs["stop_reason"] == br.stop_reason == v.stop_reason and v.status == br.status == "validity_guard"
     d = rodcont.load_branch(g1)
     import json
     s = json.loads(d.attrs["settings"])

@@ -6,7 +6,8 @@ collocation at Gauss points, Keller pseudo-arclength continuation.
     >>> import rodcont
     >>> eq = rodcont.solve(gamma=1.0, phi_L=10.0)        # one equilibrium
     >>> br = rodcont.trace(gamma=1.0, out="g1.h5")       # a branch, with its folds
-    >>> data = rodcont.load_branch("g1.h5")              # read a branch file
+    >>> data = rodcont.load_branch("g1.h5")              # read it back: the same type as br
+    >>> br.status, br.stop_reason, br.folds[0]["phi_L"]  # why it ended; its first fold
 
 Names are imported on first use, so ``import rodcont`` (and the command
 line) costs only what is used.
@@ -18,7 +19,9 @@ _API = {
     "RodParameters": "rod", "EulerianRod": "rod", "StraightReference": "rod", "ReferenceCurve": "rod",
     "BVProblem": "collocation", "Collocation": "collocation", "NewtonResult": "linalg",
     "ContinuationSettings": "continuation", "Tracker": "continuation", "Point": "continuation",
-    "Event": "continuation",
+    "Event": "continuation", "continuation": "continuation",
+    "ContinuationResult": "result", "Status": "result", "SpecialPoint": "result", "Table": "result",
+    "AdaptiveContinuation": "adaptive", "AdaptiveSettings": "adaptive", "adaptive_continuation": "adaptive",
     "solve": ("drivers.solve", "solve_equilibrium"), "Equilibrium": "drivers.solve",
     "ConvergenceError": "drivers.solve",
     "trace": "drivers.trace", "TraceOptions": "drivers.trace", "Branch": "branch", "RodSystem": "system",

@@ -16,7 +16,12 @@ in the parameters). ``g`` itself is exact, so converged points are exact; the
 differences only affect the Newton rate.
 
 Two-parameter protocol: ``residual(x, p1, p2)``, ``tangent(x, p1, p2) ->
-(J, F_p1, F_p2)``.
+(J, F_p1, F_p2)``. A two-parameter problem on a mesh (``breakpoints``, ``k``,
+``with_mesh(breakpoints, k)``, ``transfer(x, source)``, ``conform(breakpoints)``,
+``interval_defect(x, p1, p2)``, ``outputs(x, p1, p2)`` and ``slice(p2)``, the
+one-parameter meshed problem in ``p1`` at ``p2``, for the error estimate) makes the
+fold problem a meshed problem of :mod:`rodcont.adaptive`: its mesh adapts as a
+branch's does, carrying ``x``, ``p1`` and the null vector over.
 
 Branch switching: at a simple branch point the kernel of ``[J, F_p]`` is
 two-dimensional; the direction orthogonal to the incoming tangent (found by
@@ -45,15 +50,58 @@ class FoldProblem:
         self.pb = problem2
         self.n = x0.size
         self.eps = eps
-        J, _, _ = problem2.tangent(x0, p1, p2)
         v0 = np.asarray(v0, float)
         self.c = v0 / np.linalg.norm(v0)
-        # left null vector: J^T w = 0 from the transposed bordered system with a trial border
+        self.b = self._left_null_vector(problem2.tangent(x0, p1, p2)[0])
+
+    def _left_null_vector(self, J) -> np.ndarray:
+        """``J^T w = 0`` from the transposed bordered system with the right null vector as a trial border."""
         lu = LU(bordered(J, self.c, self.c, 0.0))
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
         w = lu.solve(e, trans=True)[:-1]
-        self.b = w / np.linalg.norm(w)
+        return w / np.linalg.norm(w)
+
+    # ---- on a mesh (the meshed-problem protocol of rodcont.adaptive) --------------------
+    @property
+    def breakpoints(self):
+        return self.pb.breakpoints
+
+    @property
+    def k(self) -> int:
+        return self.pb.k
+
+    def with_mesh(self, breakpoints, k: int | None = None) -> "FoldProblem":
+        """The same fold problem on another mesh: the right null vector carried over; the left one is
+        made again at the first point evaluated there (the start of the next segment)."""
+        new = FoldProblem.__new__(FoldProblem)
+        new.pb, new.eps = self.pb.with_mesh(breakpoints, k), self.eps
+        c = new.pb.transfer(self.c, self.pb)
+        new.n, new.c, new.b = c.size, c / np.linalg.norm(c), None
+        return new
+
+    def transfer(self, X, source: "FoldProblem") -> np.ndarray:
+        """``X = (x, p1)`` (or a tangent of it) of ``source`` on this mesh: ``x`` carried over, ``p1`` kept."""
+        X = np.asarray(X, float)
+        return np.append(self.pb.transfer(X[:-1], source.pb), X[-1])
+
+    def conform(self, breakpoints):
+        return self.pb.conform(breakpoints)
+
+    def interval_defect(self, X, p2):
+        return self.pb.interval_defect(X[:-1], float(X[-1]), p2)
+
+    def outputs(self, X, p2) -> dict:
+        return self.pb.outputs(X[:-1], float(X[-1]), p2)
+
+    def error_estimator(self):
+        """The error of a fold point is that of the ``p1``-branch's point there, with the null vector as
+        its tangent: the fold state re-solved in the richer space (:class:`rodcont.mesh.ErrorEstimator`)."""
+        return _FoldError(self)
+
+    def _ensure_left(self, J) -> None:
+        if self.b is None:
+            self.b = self._left_null_vector(J)
 
     # ---- the test function and its null vectors -------------------------------
     def _null_vectors(self, J):
@@ -66,6 +114,7 @@ class FoldProblem:
 
     def test_function(self, x, p1, p2) -> float:
         J, _, _ = self.pb.tangent(x, p1, p2)
+        self._ensure_left(J)
         return float(self._null_vectors(J)[2])
 
     def residual(self, X, p2):
@@ -77,6 +126,7 @@ class FoldProblem:
         x, p1 = X[:-1], X[-1]
         F = self.pb.residual(x, p1, p2)
         J, F1, F2 = self.pb.tangent(x, p1, p2)
+        self._ensure_left(J)
         v, w, g = self._null_vectors(J)
         # second-derivative terms by central differences along v (x) and in p1, p2
         hx = self.eps * (1.0 + np.max(np.abs(x))) / max(np.max(np.abs(v)), 1e-300)
@@ -104,10 +154,25 @@ class FoldProblem:
         """Refresh the bordering vectors with the null vectors at an accepted point."""
         x, p1 = X[:-1], X[-1]
         J, _, _ = self.pb.tangent(x, p1, p2)
+        self._ensure_left(J)
         v, w, _ = self._null_vectors(J)
         if np.all(np.isfinite(v)) and np.all(np.isfinite(w)) and np.linalg.norm(v) > 0 and np.linalg.norm(w) > 0:
             self.c = v / np.linalg.norm(v)
             self.b = w / np.linalg.norm(w)
+
+
+class _FoldError:
+    """The estimated error of the fold points of a :class:`FoldProblem` (see its ``error_estimator``)."""
+
+    def __init__(self, fp: FoldProblem):
+        self.fp, self.estimator = fp, None
+
+    def estimate(self, X, p2, tangent=None) -> float:
+        one = self.fp.pb.slice(p2)
+        if self.estimator is None:
+            from .mesh import ErrorEstimator
+            self.estimator = ErrorEstimator(one)
+        return self.estimator.estimate(np.asarray(X[:-1]), float(X[-1]), (self.fp.c, 0.0))
 
 
 def bifurcating_direction(J, Fp, tx, tp, wx: float, wp: float, iterations: int = 4):

@@ -4,7 +4,11 @@ Layout (names are read by other tools; keep them)::
 
     /                      attrs: rodcont_version, kind (branch | fold_curve | diagram), gamma, T,
                                   w, EI, GJ, EA, L, N, k, param, weight_direction,
-                                  min_alignment_guard, max_error, stop_reason, settings (JSON),
+                                  min_alignment_guard, max_error, stop_reason, status (the
+                                  rodcont.result.Status of stop_reason: bound, validity_guard,
+                                  accuracy_guard, event, interrupted, ...; status_first for the
+                                  first end of a fold curve), settings (JSON; continuation_settings,
+                                  adaptive_settings: the tracker's and the adaptive loop's),
                                   missed_crossings (JSON, when any: [value before, value after,
                                   unstable modes before, after] of eigenvalue crossings that no
                                   located fold or branch point accounts for)
@@ -19,7 +23,8 @@ Layout (names are read by other tools; keep them)::
     /branch/defect         (n,)   relative residual between collocation points (indicator)
     /branch/error          (n,)   estimated error of the outputs and the centreline (halved mesh)
     /branch/dphi_ds        (n,)   parameter component of the unit tangent (0 at a fold)
-    /branch/kind           (n,)   start, regular, fold, branch_point, forced, bound, event:<name>
+    /branch/kind           (n,)   start, regular, fold, branch_point, forced, bound, event:<label>
+                                  (files written before labels: event:<whole sentence>)
     /branch/located        (n,)   1, or 0 for a special point bracketed but not located
     /branch/<param>        (n,)   the continued parameter, when it is not phi_L
     /branch/coefficients   (n, m) unknown vector x of each point, NaN-padded (meshes differ)
@@ -28,6 +33,10 @@ Layout (names are read by other tools; keep them)::
     /folds/phi_L, stretch, torque, l0, waves_before, waves_after, index, located,
            unstable_before, unstable_after (the two sides of the fold: smaller stretch first)
     /branch_points/index, phi_L, stretch
+    /special_points/index, kind, label, located, value, message
+                           every special point: kind (start, fold, branch_point, forced, bound,
+                           event), label (F1, BP1, P1, an event's label), the parameter's value,
+                           the message (an event's sentence, why a bound stopped)
     /mesh/breakpoints      (N+1,) the first partition; attrs: k, orders, fields, layout
 
 Inside a conduit (``trace --conduit``; root attribute ``conduit``: the wall's
@@ -47,9 +56,15 @@ of the wall pressure) and ``contact_zones`` (their number), and::
 ``/contact`` is written when the run ends (also when it is interrupted: its rows are computed
 as the points are recorded, so closing the file does not wait for them).
 
-A diagram file holds ``/branches/<j>/`` with the ``branch``, ``folds`` and
-``branch_points`` groups of each branch (and its end reasons as attributes),
-and a top-level ``/folds`` table of every fold with a ``branch`` column.
+A diagram file holds ``/branches/<j>/`` with the ``branch``, ``folds``,
+``branch_points`` and ``special_points`` groups of each branch (and its end reasons
+as attributes: ``stop_reason_first``, ``stop_reason``, ``status_first``, ``status``,
+``missed_crossings`` and ``unlocated`` when any), and a top-level ``/folds`` table of
+every fold with a ``branch`` column.
+
+Reading: :func:`load_branch` returns a :class:`rodcont.branch.Branch`, the type the drivers
+return (files written before the status and the special points were stored read too: the
+status is inferred from ``stop_reason``, the labels from the kinds).
 
 Safety. The file is built in memory (HDF5 core driver) and *published*:
 written whole to a temporary file beside the target, flushed to disk, and
@@ -77,10 +92,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import __version__
+from .result import Table
+
+from .branch import FOLD_FIELDS, Branch
 
 SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "error", "dphi_ds")
-FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located",
-               "unstable_before", "unstable_after")
+#: the loaded-branch type (a Branch read from a file is a Branch)
+BranchData = Branch
 MAGIC = b"RODCONT-BRANCH-FILE\x00"
 
 
@@ -335,11 +353,33 @@ class _Group:
             self._matrix("tangent", t.size, "f4")[i, :t.size] = t
             self._pending = None
 
-    def set_special(self, folds: list[dict], branch_points: list[dict]) -> None:
-        """Rewrite the fold and branch-point tables (waves and sides are known only as the branch grows)."""
-        for name in ("folds", "branch_points"):
+    def correct(self, name: str, i: int, value) -> None:
+        """Change the value of column ``name`` at point ``i`` (queued or written)."""
+        q0 = self.n - len(self._queue)
+        if i >= q0:
+            r = self._queue[i - q0]
+            if name in r:
+                r[name] = value
+            else:
+                r["scalars"][self.columns.index(name)] = float(value)
+        else:
+            self.g[name][i] = value
+
+    def set_special(self, folds: list[dict], branch_points: list[dict], special: list | None = None) -> None:
+        """Rewrite the fold, branch-point and special-point tables (waves and sides are known only as the
+        branch grows)."""
+        for name in ("folds", "branch_points", "special_points"):
             if name in self.root:
                 del self.root[name]
+        if special is not None:
+            h5py = _h5py()
+            sp = self.root.create_group("special_points")
+            sp.create_dataset("index", data=np.array([p.index for p in special], dtype="i8"))
+            sp.create_dataset("located", data=np.array([p.located for p in special], dtype="i1"))
+            sp.create_dataset("value", data=np.array([p.value for p in special], dtype="f8"))
+            for name in ("kind", "label", "message"):
+                sp.create_dataset(name, data=np.array([getattr(p, name) for p in special], dtype=object),
+                                  dtype=h5py.string_dtype())
         fo = self.root.create_group("folds")
         for name in FOLD_FIELDS:
             dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
@@ -371,6 +411,7 @@ class BranchWriter:
         self.f = h5py.File(f"rodcont-{id(self)}-{time.monotonic_ns()}", "w", driver="core", backing_store=False)
         self.f.attrs["rodcont_version"] = __version__
         self.f.attrs["stop_reason"] = "running"
+        self.f.attrs["status"] = "running"
         self.f.attrs["store_every"] = self.store_every
         for key, val in meta.items():
             self.f.attrs[key] = _attr(val)
@@ -418,13 +459,15 @@ class BranchWriter:
         if self.due():
             self.flush()
 
-    def close(self, stop_reason: str | None = None) -> None:
-        """Set the stop reason, publish (if any point) and release the lock; idempotent."""
+    def close(self, stop_reason: str | None = None, status=None) -> None:
+        """Set the stop reason (and its status), publish (if any point) and release the lock; idempotent."""
         if self.closed:
             return
         try:
             if stop_reason is not None:
                 self.f.attrs["stop_reason"] = stop_reason
+            if status is not None:
+                self.f.attrs["status"] = str(status)
             for grp in self.groups.values():
                 grp.fill_pending()  # a finished (or interrupted) file ends on a restartable point
             self.flush()
@@ -452,134 +495,14 @@ def _attr(v):
 # Reading
 # --------------------------------------------------------------------------
 @dataclass
-class BranchData:
-    """A branch read into memory (a trace file, or one branch of a diagram file)."""
-
-    path: str
-    attrs: dict
-    branch: dict
-    folds: dict
-    branch_points: dict
-    breakpoints: np.ndarray
-    group_attrs: dict | None = None
-    name: str = ""                 # "" for a trace file, "<j>" for a diagram branch
-
-    def __len__(self) -> int:
-        return len(self.branch["phi_L"])
-
-    @property
-    def rod(self):
-        from .rod import RodParameters
-        a = self.attrs
-        return RodParameters(EI=a["EI"], GJ=a["GJ"], EA=a["EA"], w=a["w"], L=a["L"],
-                             weight_direction=tuple(a.get("weight_direction", (0.0, 0.0, -1.0))))
-
-    @property
-    def curve(self):
-        """The reference curve the file's solutions are written on (``reference`` attribute)."""
-        from .curves import parse_reference
-        spec = str(self.attrs.get("reference", "straight"))
-        try:
-            return parse_reference(spec, float(self.attrs["L"]))
-        except ValueError as exc:
-            raise BranchFileError(f"{self.path}: damaged branch file (reference {spec!r}: {exc})") from None
-
-    @property
-    def wall(self):
-        """The conduit wall of the file's rod (``conduit`` attribute; None: no wall)."""
-        spec = str(self.attrs.get("conduit", ""))
-        if not spec:
-            return None
-        from .contact import Wall
-        try:
-            return Wall.from_spec(spec)
-        except (ValueError, TypeError) as exc:
-            raise BranchFileError(f"{self.path}: damaged branch file (conduit {spec!r}: {exc})") from None
-
-    @property
-    def gamma(self) -> float:
-        return float(self.attrs["gamma"])
-
-    @property
-    def tension(self) -> float:
-        a = self.attrs
-        return float(a["T"]) if "T" in a else float(a["gamma"]) * float(a["w"]) * float(a["L"])
-
-    @property
-    def param(self) -> str:
-        return str(self.attrs.get("param", "phi_L"))
-
-    @property
-    def label(self) -> str:
-        return f"{self.path}:{self.name}" if self.name else self.path
-
-    def resolve(self, label: str | int) -> int:
-        """Point index of ``label``: an integer (point, from 0; negative from the end),
-        ``F<j>`` the j-th fold or ``BP<j>`` the j-th branch point (both counted from 1)."""
-        s = str(label).strip()
-        n = len(self)
-        try:
-            if s.upper().startswith("BP"):
-                j = int(s[2:])
-                idx = self.branch_points["index"]
-                if not 1 <= j <= len(idx):
-                    raise BranchFileError(f"{self.label} has {len(idx)} branch point(s); {s} does not exist")
-                return int(idx[j - 1])
-            if s.upper().startswith("F"):
-                j = int(s[1:])
-                idx = self.folds["index"]
-                if not 1 <= j <= len(idx):
-                    raise BranchFileError(f"{self.label} has {len(idx)} fold(s); {s} does not exist")
-                return int(idx[j - 1])
-            i = int(s)
-        except ValueError:
-            raise BranchFileError(f"point label {s!r}: expected an integer index, F<j> or BP<j>") from None
-        if not -n <= i < n:
-            raise BranchFileError(f"{self.label} has {n} point(s); index {i} is out of range")
-        return i % n
-
-    def point(self, label) -> dict:
-        i = self.resolve(label)
-        out = {name: self.branch[name][i] for name in self.branch if self.branch[name].ndim == 1}
-        b = self.branch["breakpoints"][i]
-        b = b[np.isfinite(b)]
-        x = self.branch["coefficients"][i]
-        if not np.any(np.isfinite(x)):
-            stored = [j for j in range(len(self)) if np.any(np.isfinite(self.branch["coefficients"][j]))]
-            near = min(stored, key=lambda j: abs(j - i)) if stored else None
-            raise BranchFileError(f"{self.label}: point {i} has no stored solution (the file keeps every "
-                                  f"{self.attrs.get('store_every', '?')}-th point and the special ones)"
-                                  + (f"; the nearest stored one is {near}" if near is not None else ""))
-        out["breakpoints"] = b
-        out["x"] = x[np.isfinite(x)]
-        out["index"] = i
-        out["direction"] = self.direction(i)
-        return out
-
-    def direction(self, i: int) -> tuple[np.ndarray, float]:
-        """Direction of travel at point ``i``: the stored unit tangent (its parameter part last)."""
-        t = self.branch.get("tangent")
-        if t is not None:
-            v = np.asarray(t[i], float)
-            v = v[np.isfinite(v)]
-            if v.size and np.all(np.isfinite(v)) and np.any(v != 0):
-                return v[:-1], float(v[-1])
-        X = self.branch["coefficients"]
-        P = self.branch[self.param if self.param in self.branch else "phi_L"]
-        if i > 0 and np.array_equal(np.isfinite(X[i]), np.isfinite(X[i - 1])):
-            d = X[i] - X[i - 1]
-            return d[np.isfinite(d)], float(P[i] - P[i - 1])
-        return np.zeros(int(np.isfinite(X[i]).sum())), 1.0
-
-
-@dataclass
 class DiagramData:
-    """A diagram file: its branches and the fold table of all of them."""
+    """A diagram file: its branches (each a :class:`rodcont.branch.Branch`) and the fold table of all
+    of them (a :class:`rodcont.result.Table` with a ``branch`` column)."""
 
     path: str
     attrs: dict
     branches: list
-    folds: dict
+    folds: Table
 
     def __len__(self) -> int:
         return len(self.branches)
@@ -743,9 +666,32 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
             idx = np.asarray(target.get("index", np.zeros(0, int)))
             if idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= n):
                 raise BranchFileError(f"{where}: damaged branch file (/{group}/index out of range)")
+    special = _read_special(where, root, n)
     gattrs = {k: _plain(v) for k, v in root.attrs.items()} if name else None
     mesh = root.file["mesh"]["breakpoints"][()] if "mesh" in root.file else B[0][np.isfinite(B[0])]
-    return BranchData(path, attrs, branch, folds, bps, mesh, gattrs, name)
+    if "status" in (gattrs if gattrs is not None else attrs):
+        from .result import Status
+        value = (gattrs if gattrs is not None else attrs)["status"]
+        if value not in {s.value for s in Status}:
+            raise BranchFileError(f"{where}: damaged branch file (status = {value!r})")
+    return Branch.from_file(path, attrs, branch, folds, bps, special, mesh, gattrs, name)
+
+
+def _read_special(where: str, root, n: int) -> dict | None:
+    """``/special_points`` as columns (None in files written before it)."""
+    h5py = _h5py()
+    if "special_points" not in root:
+        return None
+    g = root["special_points"]
+    if not isinstance(g, h5py.Group) or any(not isinstance(g[k], h5py.Dataset) for k in g):
+        raise BranchFileError(f"{where}: damaged branch file (/special_points)")
+    out = {k: g[k][()] for k in g}
+    idx = np.asarray(out.get("index", np.zeros(0, int)))
+    if idx.ndim != 1 or idx.dtype.kind not in "iu" or (idx.size and (idx.min() < 0 or idx.max() >= n)) or \
+            any(np.asarray(v).shape != idx.shape for v in out.values()):
+        raise BranchFileError(f"{where}: damaged branch file (/special_points)")
+    out["message"] = [_plain(m) for m in out.get("message", [""] * idx.size)]
+    return out
 
 
 def _open(path: str):
@@ -771,8 +717,9 @@ _READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDec
                 RuntimeError, OverflowError)
 
 
-def load_branch(path: str, branch: str | int | None = None) -> BranchData:
-    """Read a branch file (or branch ``<j>`` of a diagram file); :class:`BranchFileError` with a one-line reason otherwise."""
+def load_branch(path: str, branch: str | int | None = None) -> Branch:
+    """Read a branch file (or branch ``<j>`` of a diagram file) as a :class:`rodcont.branch.Branch`;
+    :class:`BranchFileError` with a one-line reason otherwise."""
     f = _open(path)
     try:
         with f:
@@ -797,13 +744,15 @@ def load_branch(path: str, branch: str | int | None = None) -> BranchData:
 
 
 def load_diagram(path: str) -> DiagramData:
-    """Read a diagram file (a trace file reads as a diagram of one branch)."""
+    """Read a diagram file (a trace file reads as a diagram of one branch, with its folds)."""
     f = _open(path)
     try:
         with f:
             attrs = _root_attrs(path, f)
             if "branches" not in f:
-                return DiagramData(path, attrs, [_read_group(path, f, attrs)], {})
+                one = _read_group(path, f, attrs)
+                return DiagramData(path, attrs, [one], Table([dict(row, branch=0) for row in one.folds],
+                                                             columns=tuple(one.folds.columns) + ("branch",)))
             names = sorted(f["branches"].keys(), key=lambda s: (len(s), s))
             if not names:
                 raise BranchFileError(f"{path}: a diagram file with no branch")
@@ -815,7 +764,8 @@ def load_diagram(path: str) -> DiagramData:
                         len({len(folds[c]) for c in cols}) > 1 or \
                         (len(folds["branch"]) and (folds["branch"].min() < 0 or folds["branch"].max() >= len(names))):
                     raise BranchFileError(f"{path}: damaged diagram file (/folds)")
-            return DiagramData(path, attrs, branches, folds)
+            from .branch import _table
+            return DiagramData(path, attrs, branches, _table(folds, ("branch",) + FOLD_FIELDS))
     except BranchFileError:
         raise
     except _READ_ERRORS as exc:

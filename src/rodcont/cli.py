@@ -942,6 +942,10 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
         for kind, a, b in db.branch.unlocated:
             click.echo(f"       warning: a {kind.replace('_', ' ')} between phi_L = {a:.10g} and {b:.10g} was "
                        f"detected but could not be located; it is not in the tables")
+        for a, b, n0, n1 in db.branch.missed_crossings:
+            click.echo(f"       warning: unstable modes {n0} -> {n1} between phi_L = {a:.10g} and {b:.10g}: more "
+                       f"eigenvalues crossed zero than the located folds and branch points account for (unseen "
+                       f"bifurcations; the counts between are corrected)")
     for origin, why in dg.skipped:
         click.echo(f"  not traced: {origin}: {why}")
     click.echo(f"time             {elapsed:.2f} s")
@@ -976,9 +980,7 @@ def folds(file):
     d = _load_any(file)
     if d.attrs.get("kind") == "diagram":
         click.echo(f"# {file}: diagram at Gamma = {d.attrs.get('gamma'):g}, {len(d.branches)} branches")
-        folds = [dict(branch=int(d.folds["branch"][i]), **{n: d.folds[n][i] for n in d.folds if n != "branch"})
-                 for i in range(len(d.folds.get("phi_L", [])))]
-        _diagram_folds(folds)
+        _diagram_folds(list(d.folds))
         return
     data = d.branches[0]
     click.echo(f"# {file}: Gamma = {data.gamma:g}, {len(data)} points, stop: {data.attrs.get('stop_reason')}")
@@ -1101,17 +1103,21 @@ def shape(file, points, branch, output):
 @click.option("--quiet", is_flag=True)
 def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced, uniform, N_max, out, overwrite,
                    quiet):
-    """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I (or FILE.h5:BRANCH:I) is the I-th fold, from 0."""
+    """Continue a fold of a branch file in (Phi, PARAM): FILE.h5:I (or FILE.h5:BRANCH:I) is the I-th fold, from 0
+    (or FILE.h5:F<j>, the j-th from 1)."""
     from .branchfile import BranchFileError, split_spec
     from .drivers.foldcurve import fold_curve
     try:
         path, branch, label = split_spec(spec, "fold-curve")
     except BranchFileError as exc:
         raise UserError(str(exc)) from None
-    try:
-        fold = int(label)
-    except ValueError:
-        raise UserError(f"fold-curve expects FILE.h5:I with I the fold number from 0, got {label!r}") from None
+    fold = label if label.strip().upper().startswith("F") else None
+    if fold is None:
+        try:
+            fold = int(label)
+        except ValueError:
+            raise UserError(f"fold-curve expects FILE.h5:I with I the fold number from 0 (or F<j> from 1), got "
+                            f"{label!r}") from None
     data = _load(path, branch)
     _check_out(out, [path], overwrite)
     with _Interrupts() as intr:
@@ -1128,16 +1134,15 @@ def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced
         except (ValueError, TypeError) as exc:
             raise UserError(str(exc)) from None
     progress.done()
-    pts = res["points"]
-    if len(pts) <= 1:
-        raise UserError(f"the fold could not be continued: {'; '.join(res['stop_reasons'])}")
-    click.echo(f"points       {len(pts)}")
-    click.echo(f"stop reasons down: {res['stop_reasons'][0]}; up: {res['stop_reasons'][1]}")
+    if len(res) <= 1:
+        raise UserError(f"the fold could not be continued: {res.message_first}; {res.message}")
+    click.echo(f"points       {len(res)}")
+    click.echo(f"stop reasons down: {res.message_first}; up: {res.message}")
     click.echo(f"time         {time.perf_counter() - t0:.3f} s")
     click.echo(f"{param:>12} {'phi_L':>18} {'stretch':>16} {'torque':>14} kind")
-    for pt in pts:
-        d = pt.data
-        click.echo(f"{d[param]:12.6f} {d['phi_L']:18.12f} {d['stretch']:16.10f} {d['torque']:14.8f} {pt.kind}")
+    for i in range(len(res)):
+        d = res.row_at(i)
+        click.echo(f"{d[param]:12.6f} {d['phi_L']:18.12f} {d['stretch']:16.10f} {d['torque']:14.8f} {d['kind']}")
 
 
 class _GreedyFloats(click.Option):

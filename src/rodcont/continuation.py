@@ -68,13 +68,14 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
+from .result import ContinuationResult, Status
 
 
 # --------------------------------------------------------------------------
 # Kinds, stop reasons, settings and points
 # --------------------------------------------------------------------------
 class Kind(str, Enum):
-    """What a point is. Stored in branch files as the value (events as ``event:<name>``)."""
+    """What a point is. Stored in branch files as the value (events as ``event:<label>``)."""
 
     START = "start"
     REGULAR = "regular"
@@ -88,24 +89,17 @@ class Kind(str, Enum):
         return self.value
 
 
-class Stop(Enum):
-    """Why a tracker ended."""
-
-    MAX_STEPS = "max_steps"
-    STEP_TOO_SMALL = "step_too_small"
-    BOUND = "bound"
-    EVENT = "event"            # a stopping event (a guard)
-    SEGMENT = "segment"        # an event that ends this segment: the caller goes on with another tracker
-    AT_START = "at_start"      # a stopping event or bound already violated at the first point
-    START_FAILED = "start_failed"
-    NO_CONVERGENCE = "no_convergence"  # a driver's own stop: no converged solution even on refined meshes
+#: Why a tracker ended: the result's :class:`rodcont.result.Status` (``Stop.BOUND is Status.BOUND``).
+Stop = Status
 
 
 @dataclass
 class StopReason:
-    status: Stop
+    """A status with its message (and the label of the event that stopped, if one did)."""
+
+    status: Status
     message: str
-    event: str | None = None
+    label: str | None = None
 
     def __str__(self) -> str:
         return self.message
@@ -216,13 +210,14 @@ class Point:
     tx: np.ndarray
     tp: float
     arclength: float = 0.0
-    kind: str = Kind.REGULAR       # a Kind, or "event:<name>"
+    kind: str = Kind.REGULAR       # a Kind, or "event:<label>"
     iterations: int = 0
     ds: float = 0.0
     det_sign: int = 0
     det_log: float = 0.0
     located: bool = True           # False: a special point bracketed but not located to its tolerance
     data: dict = field(default_factory=dict)
+    message: str = ""              # what a special point is (an event's sentence, why a bound stopped)
     solver: object = field(default=None, repr=False)  # corrector matrix for steps from this point
 
 
@@ -231,7 +226,7 @@ class Action(str, Enum):
 
     RECORD = "record"    # a point is kept there
     STOP = "stop"        # the trace ends there (a guard)
-    SEGMENT = "segment"  # the tracker ends there with Stop.SEGMENT, for the caller to go on differently
+    SEGMENT = "segment"  # the tracker ends there with Status.SEGMENT, for the caller to go on differently
 
     def __str__(self) -> str:
         return self.value
@@ -241,12 +236,14 @@ class Action(str, Enum):
 class Event:
     """A scalar test function ``g(point)``; a sign change is located.
 
-    ``action``: ``"record"`` (a point is kept there), ``"stop"`` (the trace ends
-    there: a guard), or ``"segment"`` (the tracker ends there with
-    :attr:`Stop.SEGMENT`, for the caller to go on with another discretisation).
-    ``stop=True`` is the same as ``action="stop"``. A stopping event whose
-    ``g`` is already negative at the first point stops the trace at once
-    (:attr:`Stop.AT_START`).
+    ``name``: the event's sentence (a stop's message); ``label``: a short name, the point's kind
+    ``event:<label>`` (default: ``name``). ``action``: ``"record"`` (a point is kept there),
+    ``"stop"`` (the trace ends there: a guard), or ``"segment"`` (the tracker ends there with
+    :attr:`Status.SEGMENT`, for the caller to go on with another discretisation). ``stop=True`` is
+    the same as ``action="stop"``. ``status``: the :class:`rodcont.result.Status` a stopping event
+    ends the run with (default :attr:`Status.EVENT`; a model's domain guard says
+    :attr:`Status.VALIDITY_GUARD`). A stopping event whose ``g`` is already negative at the first
+    point stops the trace at once (:attr:`Status.AT_START`).
     """
 
     name: str
@@ -256,6 +253,8 @@ class Event:
     # of g, not to g at the point before it, which may be already tiny (a restart just short of the event)
     tol: float = 1e-11
     action: Action | str = ""
+    label: str = ""
+    status: Status | str | None = None
 
     def __post_init__(self):
         if not self.action:
@@ -265,6 +264,16 @@ class Event:
         except ValueError:
             raise ValueError(f"event action must be record, stop or segment, got {self.action!r}") from None
         self.stop = self.action == Action.STOP
+        self.label = str(self.label or self.name)
+        if self.status is None:
+            self.status = {Action.STOP: Status.EVENT, Action.SEGMENT: Status.SEGMENT}.get(self.action)
+        elif self.status is not None:
+            self.status = Status(self.status)
+
+    @property
+    def kind(self) -> str:
+        """The kind of the point where it is located."""
+        return f"event:{self.label}"
 
 
 @dataclass
@@ -361,7 +370,7 @@ class ValueDetector(Detector):
                 continue
             if abs(f.p - v) < 1e-12 * (1 + abs(v)):
                 f.p = v
-            why = StopReason(Stop.BOUND, f"parameter bound {self.name} = {v:g} reached") if self.stop else None
+            why = StopReason(Status.BOUND, f"parameter bound {self.name} = {v:g} reached") if self.stop else None
             out.append(Finding(f.ds, f, why))
         return out
 
@@ -375,14 +384,14 @@ class EventDetector(Detector):
         g0, g1 = ev.function(base), ev.function(new)
         if not g0 * g1 < 0:
             return []
-        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
-                           f"event:{ev.name}")
-        status = {Action.STOP: Stop.EVENT, Action.SEGMENT: Stop.SEGMENT}.get(ev.action)
+        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind)
+        status = ev.status if ev.action in (Action.STOP, Action.SEGMENT) else None
         if f is not None:
-            return [Finding(f.ds, f, StopReason(status, ev.name, ev.name) if status else None)]
+            f.message = ev.name
+            return [Finding(f.ds, f, StopReason(status, ev.name, ev.label) if status else None)]
         if status is not None:  # crossed but not located: stop before the crossing, say so
             return [Finding(ds, None, StopReason(status, f"{ev.name} (crossed between p = {base.p:.10g} and "
-                                                         f"{new.p:.10g}; not located)", ev.name))]
+                                                         f"{new.p:.10g}; not located)", ev.label))]
         return []
 
 
@@ -760,20 +769,28 @@ class Tracker:
             t = -t
         return t[:-1], float(t[-1])
 
-    def _check_start(self, pt: Point) -> StopReason | None:
-        """A bound or a stopping event already violated at the first point stops at once."""
+    def check_start(self, pt: Point) -> StopReason | None:
+        """Why the run may not go on from its first point ``pt``: a bound or a stopping event already
+        violated there (:attr:`Status.AT_START`), or a bound it heads out of (:attr:`Status.BOUND`);
+        None when it may."""
         s = self.settings
         if not s.p_min <= pt.p <= s.p_max:
-            return StopReason(Stop.AT_START, f"the start p = {pt.p:.10g} is outside the bounds "
+            return StopReason(Status.AT_START, f"the start p = {pt.p:.10g} is outside the bounds "
                                              f"[{s.p_min:g}, {s.p_max:g}]")
         if (pt.p >= s.p_max and pt.tp > 0) or (pt.p <= s.p_min and pt.tp < 0):
-            return StopReason(Stop.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
+            return StopReason(Status.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
                                           f"{s.p_max if pt.tp > 0 else s.p_min:g} reached at the start")
         for ev in self.events:
             if ev.action in (Action.STOP, Action.SEGMENT) and ev.function(pt) < 0:
-                return StopReason(Stop.AT_START if ev.action == Action.STOP else Stop.SEGMENT,
-                                  f"{ev.name} (already at the start)", ev.name)
+                return StopReason(Status.AT_START if ev.action == Action.STOP else Status.SEGMENT,
+                                  f"{ev.name} (already at the start)", ev.label)
         return None
+
+    def resume(self, pt: Point) -> None:
+        """Go on from ``pt`` (a point of this problem with its tangent, e.g. the start re-converged by
+        :meth:`start`): the iteration's first step leaves from it, without the start's checks."""
+        self.current = pt
+        self._previous = None
 
     # ---- location of special points --------------------------------------------
     def locate(self, base: Point, ds_hi: float, g: Callable[[Point], float], g0: float, g1: float,
@@ -867,10 +884,11 @@ class Tracker:
                     continue
                 g1 = ev.function(f.point)
                 e = self.locate(base, f.offset, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
-                                f"event:{ev.name}")
-                stop = StopReason(Stop.EVENT, ev.name, ev.name)
+                                ev.kind)
+                stop = StopReason(ev.status, ev.name, ev.label)
                 if e is None:
                     return found[:j] + [Finding(f.offset, None, stop)]
+                e.message = ev.name
                 return found[:j] + [Finding(e.ds, e, stop)]
         return found
 
@@ -943,14 +961,14 @@ class Tracker:
         if self.current is None:
             first = self.start()
             yield first
-            why = self._check_start(first)
+            why = self.check_start(first)
             if why is not None:
                 self.stop = why
                 return
         s = self.settings
         while True:
             if self.steps >= s.max_steps:
-                self.stop = StopReason(Stop.MAX_STEPS, f"maximum number of steps ({s.max_steps}) reached")
+                self.stop = StopReason(Status.MAX_STEPS, f"maximum number of steps ({s.max_steps}) reached")
                 return
             base = self.current
             if base.solver is None:  # e.g. an exact start: factorise at the base once
@@ -966,7 +984,7 @@ class Tracker:
                     break
                 ds *= s.shrink
                 if ds < s.ds_min:
-                    self.stop = StopReason(Stop.STEP_TOO_SMALL, f"step size fell below ds_min = {s.ds_min:g} "
+                    self.stop = StopReason(Status.STEP_TOO_SMALL, f"step size fell below ds_min = {s.ds_min:g} "
                                                                 f"({info}) at p = {base.p:.10g}")
                     return
             self.steps += 1
@@ -980,6 +998,8 @@ class Tracker:
                 # the point (e.g. refine the mesh and go on from it) sees that the tracker ends there
                 if f.stop is not None:
                     self.stop = f.stop
+                    if f.point is not None and not f.point.message:
+                        f.point.message = f.stop.message
                 if f.point is not None:
                     self._accept(f.point)
                     yield f.point
@@ -992,15 +1012,26 @@ class Tracker:
 
 def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, monitor=None,
                  events: Sequence[Event] = (), callback: Callable[[Point], None] | None = None,
-                 tangent0=None, exact_start: bool = False):
-    """Trace a branch; returns ``(points, stop_reason)``. ``callback`` sees each point as it comes."""
-    tr = Tracker(problem, x0, p0, settings, monitor, events, tangent0, exact_start)
-    points = []
+                 tangent0=None, exact_start: bool = False, param: str = "p") -> ContinuationResult:
+    """Trace a branch on a fixed discretisation; returns a :class:`rodcont.result.ContinuationResult`.
+
+    Its table has the columns ``param`` (the parameter's name), ``arclength``, ``kind``,
+    ``located`` and the scalars ``monitor(x, p)`` returns; ``status``/``message`` say why it ended
+    (:attr:`Status.START_FAILED` when no first point converged). ``callback`` sees each point as it
+    comes. For a problem on a mesh that should adapt, see :func:`rodcont.adaptive.adaptive_continuation`.
+    """
+    from dataclasses import asdict
+    s = settings or ContinuationSettings()
+    result = ContinuationResult(param, settings={"continuation": asdict(s)})
+    tr = Tracker(problem, x0, p0, s, monitor, events, tangent0, exact_start)
+    tr.unlocated = result.unlocated
     try:
         for pt in tr:
-            points.append(pt)
+            result.add(pt)
             if callback is not None:
                 callback(pt)
     except StopContinuation as exc:
-        tr.stop = StopReason(Stop.START_FAILED, str(exc))
-    return points, tr.stop_reason
+        tr.stop = StopReason(Status.START_FAILED, str(exc))
+    result.set_status(tr.stop.status if tr.stop is not None else Status.MAX_STEPS, tr.stop_reason)
+    result.steps, result.newton_iterations = tr.steps, tr.newton_iterations
+    return result

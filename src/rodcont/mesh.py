@@ -76,27 +76,34 @@ def adapted_mesh(breakpoints: np.ndarray, indicator: np.ndarray, k: int, error: 
 
 
 class ErrorEstimator:
-    """Estimated error of a solution of a :class:`rodcont.system.RodSystem` on its mesh.
+    """Estimated error of a collocation solution on its mesh (knows nothing of rods).
 
-    ``estimate(x, value)`` returns the largest of: the change of the stretch,
-    of ``l0 / L``, of the torque relative to ``max(|torque|, EI/L)``, of the
-    parameter, and of the centreline relative to ``L`` (on 8 points per
-    subinterval) when the solution is re-solved in a richer space: one more
-    Gauss point per subinterval (``refine="k"``, the default; the B-splines of
-    order ``k + m`` with knots of multiplicity ``k`` span a subspace of those of
-    order ``k + 1 + m`` with multiplicity ``k + 1``), or every subinterval
-    halved (``refine="halve"``). Both give the same estimate to a few percent
-    (measured along the Gamma = 1 branch); ``k + 1`` costs less. The richer
-    discretisation is built once per mesh. With ``watch_side_force`` (in a
-    conduit) each estimate also sets ``side_force_error``: the change of the
-    side force relative to ``max(|side force|, P L)``.
+    The solution is re-solved in a richer space: one more Gauss point per subinterval
+    (``refine="k"``, the default; the B-splines of order ``k + m`` with knots of multiplicity
+    ``k`` span a subspace of those of order ``k + 1 + m`` with multiplicity ``k + 1``), or every
+    subinterval halved (``refine="halve"``); the richer discretisation is built once per mesh.
+    The estimate is the largest change, in the problem's own scales, of what a user reads:
+
+    * ``problem.error_quantities(x, p) -> (values, scales)``: named scalars of the solution
+      (1-D arrays); the change of each is divided by its scale at the richer solution;
+    * the parameter: its change divided by ``max(|p|, 1)`` (the change itself is kept as
+      ``parameter_change``: at a fold, how far the fold moves);
+    * ``problem.error_fields() -> [(field, scale), ...]``: fields whose values on ``samples``
+      points per subinterval are compared (max change over the points, divided by the scale).
+
+    The problem is a meshed problem (:mod:`rodcont.adaptive`) with ``disc`` (its
+    :class:`rodcont.collocation.Collocation`), ``with_mesh(breakpoints, k)`` and
+    ``linearise(x, p)``; optionally ``fixed_parameters`` (copied to the richer problem at each
+    estimate, for a problem whose other parameters move, as a fold curve's do) and
+    ``watched_quantities(x, p) -> {name: (value, scale)}``: with ``watch=True`` each estimate also
+    sets ``watched[name]``, the change of each relative to its scale, kept apart from the estimate
+    (a quantity whose own accuracy is not the guard's business, such as a contact force).
     """
 
-    def __init__(self, system, samples: int = 8, refine: str = "k", watch_side_force: bool = False):
+    def __init__(self, system, samples: int = 8, refine: str = "k", watch: bool = False):
         self.system = system
-        # with watch_side_force, in a conduit: the change of the side force relative to max(|side force|,
-        # P L), kept apart from the estimate (see estimate)
-        self.watch_side_force, self.side_force_error = watch_side_force, math.nan
+        self.watch, self.watched = watch, {}
+        self.parameter_change = math.nan  # the last estimate's change of the parameter itself (how far a fold moves)
         if refine == "halve" or system.disc.k >= 7:
             self.fine = system.with_mesh(halved(system.disc.breakpoints))
         else:  # one more Gauss point per subinterval: the same knots, a richer space
@@ -107,13 +114,14 @@ class ErrorEstimator:
         coarse, fine = system.disc, self.fine.disc
         # the coarse space lies in the fine one: carry coefficients over by collocating at the fine Gauss points
         self._to_fine = _embedding(coarse, fine)
-        self._centre_c = [coarse.evaluation_matrix(self.S, i) for i in (0, 1)]
-        self._centre_f = [fine.evaluation_matrix(self.S, i) for i in (0, 1)]
+        fields = list(system.error_fields())
+        self._fields = [(coarse.evaluation_matrix(self.S, i), fine.evaluation_matrix(self.S, i), float(scale))
+                        for i, scale in fields]
 
     def estimate(self, x: np.ndarray, value: float, tangent: tuple | None = None) -> float:
         """Estimated error of the solution ``x`` at parameter ``value``.
 
-        With ``tangent = (tx, tp)`` (the branch tangent) the halved problem is
+        With ``tangent = (tx, tp)`` (the branch tangent) the richer problem is
         solved on the hyperplane through the point normal to the tangent, as the
         tracker's corrector does, so the estimate stays finite at a fold (where
         the Jacobian at fixed parameter is singular) and includes the change of
@@ -121,6 +129,8 @@ class ErrorEstimator:
         """
         from .linalg import LU, SingularMatrix, bordered
         sysc, sysf = self.system, self.fine
+        if hasattr(sysc, "fixed_parameters"):
+            sysf.fixed_parameters = sysc.fixed_parameters
         xf = self._to_fine(x)
         F, J, Fp = sysf.linearise(xf, value)
         try:
@@ -139,22 +149,16 @@ class ErrorEstimator:
         except SingularMatrix:
             return math.inf
         xf2, pf = xf + dx, value + dp
-        oc = sysc.model.outputs(sysc.disc, x, sysc.params(value))
-        of = sysf.model.outputs(sysf.disc, xf2, sysf.params(pf))
-        L, EI = sysc.rod.L, float(sysc.params(value)[3])
-        errs = [abs(of["stretch"] - oc["stretch"]), abs(of["l0"] - oc["l0"]) / L,
-                abs(of["torque"] - oc["torque"]) / max(abs(of["torque"]), EI / L),
-                abs(dp) / max(abs(value), 1.0)]
-        for Ec, Ef in zip(self._centre_c, self._centre_f):
-            errs.append(float(np.max(np.abs(Ef @ xf2 - Ec @ x))) / L)
-        if self.watch_side_force and sysc.wall is not None:
-            # inside a conduit the wall force is an answer of its own, and the stiffest one: the law turns a
-            # deflection error d into a pressure error of about d P / (eps c) (a taper at N = 15: the side
-            # force 8 % off while the centreline was within 5e-7 of L). Kept apart: held to max_error, it
-            # would refine a trace's mesh far below the law's own error (2e-4 for a point force, eps = 1e-5)
-            fc = sysc.model.contact(sysc.disc, x, sysc.params(value))["side_force"]
-            ff = sysf.model.contact(sysf.disc, xf2, sysf.params(pf))["side_force"]
-            self.side_force_error = abs(ff - fc) / max(abs(ff), sysc.model.contact_scale * L)
+        self.parameter_change = dp
+        qc, _ = sysc.error_quantities(x, value)
+        qf, scales = sysf.error_quantities(xf2, pf)
+        errs = list(np.abs(np.asarray(qf, float) - np.asarray(qc, float)) / np.asarray(scales, float))
+        errs.append(abs(dp) / max(abs(value), 1.0))
+        for Ec, Ef, scale in self._fields:
+            errs.append(float(np.max(np.abs(Ef @ xf2 - Ec @ x))) / scale)
+        if self.watch and hasattr(sysc, "watched_quantities"):
+            wc, wf = sysc.watched_quantities(x, value), sysf.watched_quantities(xf2, pf)
+            self.watched = {name: abs(wf[name][0] - wc[name][0]) / wf[name][1] for name in wc}
         e = max(errs)
         return e if math.isfinite(e) else math.inf
 

@@ -3,7 +3,9 @@
 :class:`RodSystem` is ``F(x, q) = 0`` for the tracker, with ``q`` any one of
 ``phi_L, T, w, EI, GJ, EA`` or ``gamma`` (``T = gamma w L``); the other
 parameters are held at ``base``. :class:`RodSystem2` is ``F(x, phi_L, q) = 0``
-for fold curves. Both know their mesh; ``with_mesh`` moves them to another.
+for fold curves. Both are meshed problems (the protocol of :mod:`rodcont.adaptive`):
+they know their mesh, ``with_mesh`` moves them to another, ``transfer`` carries a
+solution over, and they name what the error estimate compares.
 """
 
 from __future__ import annotations
@@ -81,6 +83,50 @@ class RodSystem:
         new.model.output_evaluator(new.disc)
         new.base = self.base.copy()
         return new
+
+    # ---- the meshed-problem protocol (rodcont.adaptive) ------------------------------
+    @property
+    def breakpoints(self) -> np.ndarray:
+        return self.disc.breakpoints
+
+    @property
+    def k(self) -> int:
+        return self.disc.k
+
+    def transfer(self, x, source: "RodSystem") -> np.ndarray:
+        """``x`` (a solution or a tangent of ``source``, on its mesh) on this system's mesh."""
+        return self.disc.transfer(x, source.disc)
+
+    @property
+    def fixed_parameters(self) -> np.ndarray:
+        """The parameters held fixed (``base``), for the error estimate's richer twin."""
+        return self.base.copy()
+
+    @fixed_parameters.setter
+    def fixed_parameters(self, base) -> None:
+        self.base = np.array(base, float)
+
+    def error_quantities(self, x, value):
+        """What the error estimate compares, with its scales: the stretch, ``l0`` (scale ``L``) and
+        the torque (scale ``max(|torque|, EI/L)``)."""
+        p = self.params(value)
+        o = self.model.outputs(self.disc, x, p)
+        L = self.rod.L
+        return ((o["stretch"], o["l0"], o["torque"]),
+                (1.0, L, max(abs(o["torque"]), float(p[3]) / L)))
+
+    def error_fields(self):
+        """The fields the error estimate compares point by point: the deflections, on the scale ``L``."""
+        return ((0, self.rod.L), (1, self.rod.L))
+
+    def watched_quantities(self, x, value) -> dict:
+        """Inside a conduit, the side force (scale ``max(|side force|, P L)``), kept apart from the
+        estimate: the contact law turns a deflection error d into a pressure error of about
+        d P / (eps c), and held to max_error it would refine far below the law's own error."""
+        if self.wall is None:
+            return {}
+        sf = self.model.contact(self.disc, x, self.params(value))["side_force"]
+        return {"side_force": (sf, max(abs(sf), self.model.contact_scale * self.rod.L))}
 
     def value(self) -> float:
         """``q`` at the base parameters."""
@@ -215,13 +261,38 @@ class RodSystem2:
         _, J, (F1, Fq) = self.one.disc.linearise(x, self.params(phi_L, q), [0, self.index])
         return J, F1, Fq * self.scale
 
-    def outputs(self, X, q) -> dict:
-        x, phi_L = X[:-1], X[-1]
+    def outputs(self, x, phi_L, q) -> dict:
         p = self.params(phi_L, q)
         o = self.one.model.outputs(self.one.disc, x, p)
         return dict(phi_L=float(phi_L), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
                     helical_waves=o["helical_waves"], min_alignment=o["min_alignment"], defect=o["defect"],
                     **{self.param: float(q)})
+
+    # ---- the meshed two-parameter protocol (rodcont.bifurcation.FoldProblem) -----------------
+    @property
+    def breakpoints(self) -> np.ndarray:
+        return self.one.disc.breakpoints
+
+    @property
+    def k(self) -> int:
+        return self.one.disc.k
+
+    def with_mesh(self, breakpoints, k: int | None = None) -> "RodSystem2":
+        return RodSystem2(self.one.with_mesh(breakpoints, k), self.param)
+
+    def transfer(self, x, source: "RodSystem2") -> np.ndarray:
+        return self.one.disc.transfer(x, source.one.disc)
+
+    def conform(self, breakpoints) -> np.ndarray:
+        return self.one.conform(breakpoints)
+
+    def interval_defect(self, x, phi_L, q) -> np.ndarray:
+        return self.one.model.output_evaluator(self.one.disc).interval_defect(x, self.params(phi_L, q))
+
+    def slice(self, q) -> RodSystem:
+        """The one-parameter problem in ``phi_L`` at ``q`` (this system's own, re-based: no new mesh)."""
+        self.one.base = self.params(float(self.one.base[0]), q)
+        return self.one
 
 
 def rod_at(rod: RodParameters, p: np.ndarray) -> RodParameters:

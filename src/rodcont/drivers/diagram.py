@@ -11,10 +11,15 @@
 2. **Seeds**: the primary branch from the planar sag at ``Phi = 0``, and one
    start per interval between consecutive critical twists, at its midpoint,
    reached from the exact weightless straight state by a homotopy in the
-   weight (:func:`rodcont.drivers.trace.straight_seed`).
+   weight (:func:`rodcont.drivers.trace.straight_seed`). The critical twists are
+   computed beyond ``phi_max`` too, so the interval that straddles it is seeded
+   (at its midpoint, or halfway between its lower end and ``phi_max`` when the
+   midpoint lies outside the window): a branch that starts there may fold inside.
 3. **Branches**: each seed traced both ways to its guards (the trace driver:
-   adaptive mesh, validity and accuracy guards, located folds), with a forced
-   point at every seed's ``Phi``. A seed whose solution equals a point of an
+   adaptive mesh, validity and accuracy guards, located folds, the unstable-mode
+   count checked and corrected), with a forced point at every seed's ``Phi``. Each
+   branch is a :class:`rodcont.branch.Branch` whose ``status_first`` and ``status``
+   say why its two ends end. A seed whose solution equals a point of an
    already traced branch at that ``Phi`` (compared on a common grid of ``S``)
    lies on it and is not traced again; two traced branches that share a
    solution are one, kept once.
@@ -35,6 +40,7 @@ import numpy as np
 
 from ..branch import Branch
 from ..continuation import Kind, Point
+from ..result import Status, Table
 from ..linalg import LU, SingularMatrix, max_norm
 from ..rod import RodParameters
 from ..system import RodSystem, check_number
@@ -228,6 +234,11 @@ class DiagramBranch:
     seed_phi: float = math.nan
     time: float = 0.0
 
+    @property
+    def statuses(self) -> tuple:
+        """The :class:`rodcont.result.Status` of its first and its last end."""
+        return (self.branch.status_first, self.branch.status)
+
 
 @dataclass
 class Diagram:
@@ -238,15 +249,18 @@ class Diagram:
     branches: list = field(default_factory=list)
     skipped: list = field(default_factory=list)   # (origin, reason) of seeds not traced
     elapsed: float = 0.0
+    status: Status = Status.RUNNING               # COMPLETE, or INTERRUPTED
+    attrs: dict = field(default_factory=dict)     # the root attributes of its file
 
     @property
-    def folds(self) -> list[dict]:
-        """Every fold of every branch, sorted by phi_L, with its branch number."""
+    def folds(self) -> Table:
+        """Every fold of every branch, sorted by phi_L, with its branch number (rows, or columns by name)."""
         out = []
         for j, db in enumerate(self.branches):
             for f in db.branch.folds:
                 out.append(dict(f, branch=j))
-        return sorted(out, key=lambda f: f["phi_L"])
+        return Table(sorted(out, key=lambda f: f["phi_L"]), columns=("branch", "phi_L", "stretch", "torque", "l0",
+                                                                      "waves_before", "waves_after", "index"))
 
 
 def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
@@ -261,10 +275,48 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     deflated Newton looks for solutions the seeds missed. ``progress`` gets one
     line per branch as it is done.
     """
+    from .trace import _options
+    opts = _options(options, "diagram()")
+    rod, T = _rod_and_tension(gamma, rod, T)
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    deflate_at = tuple(check_number("deflate", v) for v in deflate_at)
+    store_every = check_number("store_every", store_every, integer=True)
+    if store_every < 1:
+        raise ValueError(f"store_every must be >= 1, got {store_every}")
+    t_start = time.perf_counter()
+    beyond = critical_twists(rod, T, phi_max=_beyond(opts.phi_max), phi_min=0.0, k=k)
+    crit = [c for c in beyond if c <= opts.phi_max]
+    seeds = seed_twists(beyond, opts.phi_min, opts.phi_max)
+    bopts = TraceOptions(**dict(opts.as_dict(), forced=tuple(sorted(set(opts.forced) | set(seeds) | set(deflate_at)))))
+    dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit)
+    dg.attrs = file_meta(rod, T, N, k, "phi_L", opts, RodSystem(rod, T=T, N=N, k=k),
+                         dict(kind="diagram", critical_twists=np.asarray(crit), seeds=np.asarray(seeds),
+                              deflate_at=np.asarray(deflate_at), **(meta or {})))
+    writer = None
+    if out is not None:
+        from ..branchfile import BranchWriter, check_output
+        check_output(out, overwrite=overwrite)
+        writer = BranchWriter(out, dg.attrs, store_every=store_every)
+        _mesh_group(writer, RodSystem(rod, T=T, N=N, k=k))
+    note = progress or (lambda msg: None)
     try:
-        opts = TraceOptions(**options)
-    except TypeError as exc:
-        raise TypeError(str(exc).replace("TraceOptions.__init__()", "diagram()")) from None
+        _trace_seeds(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note)
+        for phi in deflate_at:
+            _trace_deflated(dg, rod, T, phi, N, k, opts, bopts, writer, callback, note)
+        _drop_duplicates(dg, writer)
+        dg.status = Status.COMPLETE
+    finally:
+        dg.elapsed = time.perf_counter() - t_start
+        if dg.status != Status.COMPLETE:
+            dg.status = Status.INTERRUPTED
+        if writer is not None:
+            _write_folds(writer, dg)
+            writer.close(f"{len(dg.branches)} branches", dg.status)
+    return dg
+
+
+def _rod_and_tension(gamma, rod, T):
     rod = rod or RodParameters()
     if not isinstance(rod, RodParameters):
         raise TypeError(f"rod must be a RodParameters, got {rod!r}")
@@ -277,89 +329,80 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         T = rod.tension(gamma)
     T = check_number("T", T)
     check_tension(rod, T)
-    N = check_number("N", N, integer=True)
-    k = check_number("k", k, integer=True)
-    deflate_at = tuple(check_number("deflate", v) for v in deflate_at)
-    t_start = time.perf_counter()
-    crit = critical_twists(rod, T, phi_max=opts.phi_max, phi_min=0.0, k=k)
-    seeds = [0.5 * (a + b) for a, b in zip(crit[:-1], crit[1:])]
-    seeds = [s for s in seeds if opts.phi_min < s < opts.phi_max]
-    forced = tuple(sorted(set(opts.forced) | set(seeds) | set(deflate_at)))
-    bopts = TraceOptions(**dict(opts.as_dict(), forced=forced))
-    dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit)
-    writer = None
-    if out is not None:
-        from ..branchfile import BranchWriter, check_output
-        check_output(out, overwrite=overwrite)
-        probe = RodSystem(rod, T=T, N=N, k=k)
-        meta = file_meta(rod, T, N, k, "phi_L", opts, probe, dict(kind="diagram", critical_twists=np.asarray(crit),
-                                                                   seeds=np.asarray(seeds),
-                                                                   deflate_at=np.asarray(deflate_at), **(meta or {})))
-        store_every = check_number("store_every", store_every, integer=True)
-        if store_every < 1:
-            raise ValueError(f"store_every must be >= 1, got {store_every}")
-        writer = BranchWriter(out, meta, store_every=store_every)
-        _mesh_group(writer, probe)
+    return rod, T
 
-    def note(msg):
-        if progress is not None:
-            progress(msg)
 
-    try:
-        # the primary branch, from the planar sag
+def _beyond(phi_max: float) -> float:
+    """How far past ``phi_max`` critical twists are computed: far enough for the next one (they are about 8
+    apart on the paper's rod; more with compression), within the 200 rad the eigenproblem allows."""
+    return min(max(phi_max + max(20.0, 0.5 * abs(phi_max)), phi_max), 200.0)
+
+
+def seed_twists(critical: Sequence[float], phi_min: float, phi_max: float) -> list[float]:
+    """One seed per interval between consecutive critical twists, at its midpoint, inside ``(phi_min,
+    phi_max)``; the interval that straddles ``phi_max`` too (``critical`` reaches beyond it), seeded halfway
+    between its lower end and ``phi_max`` when its midpoint lies outside the window."""
+    out = []
+    for a, b in zip(critical[:-1], critical[1:]):
+        if a >= phi_max:
+            break
+        m = 0.5 * (a + b)
+        if m >= phi_max:
+            m = 0.5 * (a + phi_max)
+        if phi_min < m < phi_max:
+            out.append(m)
+    return out
+
+
+def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback, note) -> None:
+    """The primary branch from the planar sag, then one branch per seed not on a known branch."""
+    t0 = time.perf_counter()
+    system = RodSystem(rod, T=T, N=N, k=k)
+    x0 = system.model.initial_guess(system.disc, system.base[1])
+    db = _trace_both(system, x0, 0.0, bopts, "primary branch from the planar sag at phi_L = 0", writer, dg,
+                     callback, both=False)
+    db.time = time.perf_counter() - t0
+    _keep(dg, db, note)
+    for phi in seeds:
+        lo = max(c for c in crit if c < phi)
+        hi = min(c for c in crit if c > phi)
+        origin = f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}"
         t0 = time.perf_counter()
-        system = RodSystem(rod, T=T, N=N, k=k)
-        x0 = system.model.initial_guess(system.disc, system.base[1])
-        db = _trace_both(system, x0, 0.0, bopts, "primary branch from the planar sag at phi_L = 0", writer, dg,
-                         callback, both=False)
-        db.time = time.perf_counter() - t0
-        dg.branches.append(db)
-        note(_line(len(dg.branches) - 1, db))
-        # one seed per interval between critical twists
-        for j, phi in enumerate(seeds):
-            origin = (f"seed at phi_L = {phi:.6g}, between the critical twists {crit[j]:.6g} and "
-                      f"{crit[j + 1]:.6g}")
-            t0 = time.perf_counter()
-            try:
-                sysw, xs = straight_seed(rod, T, phi, N, k)
-            except TraceError as exc:
-                dg.skipped.append((origin, str(exc)))
-                note(f"  skipped {origin}: {exc}")
-                continue
-            system = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints)
-            on = _on_known_branch(dg, system, xs, phi)
-            if on is not None:
-                dg.skipped.append((origin, f"lies on branch {on}"))
-                note(f"  {origin}: lies on branch {on}, not traced again")
-                continue
-            db = _trace_both(system, xs, phi, bopts, origin, writer, dg, callback)
-            db.seed_phi, db.time = phi, time.perf_counter() - t0
-            dg.branches.append(db)
-            note(_line(len(dg.branches) - 1, db))
-        # deflation
-        for phi in deflate_at:
-            t0 = time.perf_counter()
-            new = _deflated_starts(dg, rod, T, phi, N, k, opts)
-            for system, x in new:
-                origin = f"deflated Newton at phi_L = {phi:.6g}"
-                on = _on_known_branch(dg, system, x, phi)
-                if on is not None:
-                    continue
-                try:
-                    db = _trace_both(system, x, phi, bopts, origin, writer, dg, callback)
-                except TraceError as exc:
-                    dg.skipped.append((origin, str(exc)))
-                    continue
-                db.seed_phi, db.time = phi, time.perf_counter() - t0
-                dg.branches.append(db)
-                note(_line(len(dg.branches) - 1, db))
-        _drop_duplicates(dg, writer)
-    finally:
-        dg.elapsed = time.perf_counter() - t_start
-        if writer is not None:
-            _write_folds(writer, dg)
-            writer.close(f"{len(dg.branches)} branches")
-    return dg
+        try:
+            sysw, xs = straight_seed(rod, T, phi, N, k)
+        except TraceError as exc:
+            dg.skipped.append((origin, str(exc)))
+            note(f"  skipped {origin}: {exc}")
+            continue
+        system = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints)
+        on = _on_known_branch(dg, system, xs, phi)
+        if on is not None:
+            dg.skipped.append((origin, f"lies on branch {on}"))
+            note(f"  {origin}: lies on branch {on}, not traced again")
+            continue
+        db = _trace_both(system, xs, phi, bopts, origin, writer, dg, callback)
+        db.seed_phi, db.time = phi, time.perf_counter() - t0
+        _keep(dg, db, note)
+
+
+def _trace_deflated(dg: Diagram, rod, T, phi, N, k, opts, bopts, writer, callback, note) -> None:
+    t0 = time.perf_counter()
+    for system, x in _deflated_starts(dg, rod, T, phi, N, k, opts):
+        origin = f"deflated Newton at phi_L = {phi:.6g}"
+        if _on_known_branch(dg, system, x, phi) is not None:
+            continue
+        try:
+            db = _trace_both(system, x, phi, bopts, origin, writer, dg, callback)
+        except TraceError as exc:
+            dg.skipped.append((origin, str(exc)))
+            continue
+        db.seed_phi, db.time = phi, time.perf_counter() - t0
+        _keep(dg, db, note)
+
+
+def _keep(dg: Diagram, db: DiagramBranch, note) -> None:
+    dg.branches.append(db)
+    note(_line(len(dg.branches) - 1, db))
 
 
 def _line(j: int, db: DiagramBranch) -> str:
@@ -371,41 +414,42 @@ def _line(j: int, db: DiagramBranch) -> str:
 def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: str, writer, dg: Diagram,
                 callback, both: bool = True) -> DiagramBranch:
     """Trace from a seed down, then up; the branch runs from its lower end through the seed."""
-    rod = system.rod
     j = len(dg.branches)
-    down = None
-    if both:
-        down = Branch(gamma=dg.gamma, rod=rod, N=system.disc.N, k=system.disc.k)
-        run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=-1)), branch=down)
-    branch = Branch(gamma=dg.gamma, rod=rod, N=system.disc.N, k=system.disc.k)
-    group = None
-    if writer is not None:
-        group = writer.group(f"branches/{j}", attrs=dict(origin=origin))
+    branch = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
+    group = writer.group(f"branches/{j}", attrs=dict(origin=origin)) if writer is not None else None
     rec = Recorder(branch, writer, group)
-    if down is not None and len(down) > 1:
+    if both:
+        down = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
+        run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=-1)), branch=down)
         rev = down.reversed()
         # the reversed lower part, then the upper part traced from the seed again
         for i in range(len(rev) - 1):
-            pt = Point(x=rev.coefficients[i], p=rev.table["phi_L"][i], tx=rev.tangents[i][:-1],
-                       tp=float(rev.tangents[i][-1]), arclength=rev.table["arclength"][i],
-                       kind=rev.table["kind"][i] if rev.table["kind"][i] != Kind.START else Kind.REGULAR,
-                       located=rev.table["located"][i],
-                       data={name: rev.table[name][i] for name in rev.table})
-            rec.add(pt, rev.meshes[i])
-    up_opts = TraceOptions(**dict(opts.as_dict(), direction=1))
-    run(system, x0, phi0, up_opts, branch=branch, recorder=rec, callback=callback)
-    end_low = down.stop_reason if down is not None else "start of the trace at phi_L = 0"
-    ends = (end_low, branch.stop_reason)
-    # folds and branch points detected but not located, on either side of the seed (the trace warns of each)
-    branch.unlocated = (down.unlocated if down is not None else []) + branch.unlocated
+            rec.copy(rev, i, kind=Kind.REGULAR if rev.table["kind"][i] == Kind.START else None)
+        branch.status_first, branch.message_first = down.status, down.message
+        # folds and branch points detected but not located, eigenvalue crossings missed: on either side
+        branch.unlocated += down.unlocated
+        branch.missed_crossings += down.missed_crossings
+    else:
+        branch.status_first, branch.message_first = Status.START, "start of the trace at phi_L = 0"
+    run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=1)), branch=branch, recorder=rec,
+        callback=callback)
     if writer is not None:
-        writer.set_attr("stop_reason_first", ends[0], f"branches/{j}")
-        writer.set_attr("stop_reason", ends[1], f"branches/{j}")
-        if branch.unlocated:
-            writer.set_attr("unlocated", json.dumps(branch.unlocated), f"branches/{j}")
+        _branch_attrs(writer, j, branch)
         rec.sync()
         writer.flush()
-    return DiagramBranch(branch, origin, ends)
+    return DiagramBranch(branch, origin, (branch.message_first, branch.message))
+
+
+def _branch_attrs(writer, j: int, branch: Branch) -> None:
+    """A diagram branch's ends (reasons and statuses) and its notes, as attributes of its group."""
+    where = f"branches/{j}"
+    writer.set_attr("stop_reason_first", branch.message_first, where)
+    writer.set_attr("stop_reason", branch.message, where)
+    writer.set_attr("status_first", str(branch.status_first), where)
+    writer.set_attr("status", str(branch.status), where)
+    for name in ("unlocated", "missed_crossings"):
+        if getattr(branch, name):
+            writer.set_attr(name, json.dumps(getattr(branch, name)), where)
 
 
 def _signature_at(db: DiagramBranch, phi: float, rod, T, k):
@@ -460,15 +504,11 @@ def _rewrite_groups(writer, dg: Diagram) -> None:
     writer.groups = {k_: v for k_, v in writer.groups.items() if not k_.startswith("branches/")}
     for j, db in enumerate(dg.branches):
         group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin))
-        rec = Recorder(Branch(gamma=dg.gamma, rod=dg.rod, N=db.branch.N, k=db.branch.k), writer, group)
         b = db.branch
+        rec = Recorder(Branch(dg.gamma, dg.rod, b.N, b.k, attrs=b.attrs), writer, group)
         for i in range(len(b)):
-            pt = Point(x=b.coefficients[i], p=b.table["phi_L"][i], tx=b.tangents[i][:-1], tp=float(b.tangents[i][-1]),
-                       arclength=b.table["arclength"][i], kind=b.table["kind"][i], located=b.table["located"][i],
-                       data={name: b.table[name][i] for name in b.table})
-            rec.add(pt, b.meshes[i])
-        writer.set_attr("stop_reason_first", db.ends[0], f"branches/{j}")
-        writer.set_attr("stop_reason", db.ends[1], f"branches/{j}")
+            rec.copy(b, i)
+        _branch_attrs(writer, j, b)
         rec.sync()
 
 
@@ -485,6 +525,9 @@ def _write_folds(writer, dg: Diagram) -> None:
         dt = "f8" if name in ("phi_L", "stretch", "torque", "l0") else "i8"
         fo.create_dataset(name, data=np.array([f[name] for f in folds], dtype=dt).reshape(-1))
     writer.set_attr("skipped", json.dumps([list(s) for s in dg.skipped]))
+    missed = [[j] + list(m) for j, db in enumerate(dg.branches) for m in db.branch.missed_crossings]
+    if missed:  # [branch, value before, value after, count before, count after]
+        writer.set_attr("missed_crossings", json.dumps(missed))
 
 
 def _deflated_starts(dg: Diagram, rod, T, phi: float, N: int, k: int, opts: TraceOptions):

@@ -16,6 +16,7 @@ import sys
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor
 
+from ..result import Status
 from ..rod import RodParameters
 from ..system import check_number
 
@@ -34,7 +35,8 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
     """Trace one branch (or, with ``diagram``, the whole diagram) into ``path``; returns a summary.
 
     ``queue`` (optional) receives ``(gamma, n_points, phi_L, stretch)`` after every point.
-    A failure is returned as a summary with ``error`` set, not raised.
+    The summary names the run's ``status`` (a :class:`rodcont.result.Status` value) beside its
+    ``stop_reason``. A failure is returned as a summary with ``error`` set, not raised.
     """
     n = [0]
 
@@ -52,16 +54,18 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
             return dict(gamma=gamma, path=path, points=sum(len(b.branch) for b in d.branches),
                         branches=len(d.branches),
                         folds=len(folds), first_fold=folds[0]["phi_L"] if folds else None,
-                        stop_reason=f"{len(d.branches)} branches", elapsed=time.perf_counter() - t0, error=None)
+                        stop_reason=f"{len(d.branches)} branches", status=str(d.status),
+                        elapsed=time.perf_counter() - t0, error=None)
         from .trace import trace
         br = trace(gamma, RodParameters(**rod), out=path, callback=report, **options)
         folds = br.folds
         return dict(gamma=gamma, path=path, points=len(br), folds=len(folds), branches=1,
                     first_fold=folds[0]["phi_L"] if folds else None, stop_reason=br.stop_reason,
-                    elapsed=time.perf_counter() - t0, error=None)
+                    status=str(br.status), elapsed=time.perf_counter() - t0, error=None)
     except Exception as exc:  # noqa: BLE001 - one failing Gamma is reported, the others go on
         return dict(gamma=gamma, path=path, points=0, folds=0, branches=0, first_fold=None,
-                    stop_reason=f"failed: {exc}", elapsed=time.perf_counter() - t0, error=str(exc))
+                    stop_reason=f"failed: {exc}", status=str(getattr(exc, "status", Status.START_FAILED)),
+                    elapsed=time.perf_counter() - t0, error=str(exc))
 
 
 def _worker_init() -> None:

@@ -1,16 +1,13 @@
 """Trace one branch of the rod: in ``phi_L`` (the end rotation) or in any rod parameter.
 
-The driver runs the generic tracker in *segments*: a segment is one mesh. It
-watches the estimated error of every point (:class:`Accuracy`); when the error
-grows past ``max_error / 100`` the mesh is rebuilt for the solution
-(:func:`rodcont.mesh.adapted_mesh`: more or fewer subintervals, placed where
-the residual concentrates), the last point and its tangent are carried over,
-and a new segment starts there. A point whose error exceeds ``max_error`` is
-never stored: the mesh is refined and the step retried, or, when the mesh
-may not grow (``adapt=False`` or ``N_max`` reached), the trace stops there
-(the accuracy guard). The validity guard (``min d3.K3 = min_alignment``: the
-rod about to fold back over the reference curve), ``stretch_max`` and the
-parameter bounds are located exactly by the tracker.
+A thin configuration of the generic adaptive engine (:mod:`rodcont.adaptive`): the rod's
+system (:class:`rodcont.system.RodSystem`, a meshed problem), its guards as events (the
+validity guard ``min d3.K3 = min_alignment``: the rod about to fold back over the reference
+curve, status ``validity_guard``; the stretch factor reaching 0; ``stretch_max``), the
+contact-zone detector of each mesh in a conduit (:class:`ZoneChangeDetector`), the count of
+unstable modes of each stored point (:class:`StabilityCount`, an observer), and a recorder
+that writes the branch file as it goes (:class:`Recorder`). :class:`TraceOptions` names every
+knob once; the engine's settings are made from them.
 
 Every guard and bound is also checked at the first point: a start already
 outside them is refused (``ValueError``), one on a bound and heading out of
@@ -22,24 +19,27 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import time
 import warnings
 from dataclasses import asdict, dataclass, fields
 from typing import Callable, Sequence
 
 import numpy as np
 
-from ..branch import Branch
-from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, Stop, StopContinuation,
-                            StopReason, Tracker)
-from ..linalg import HeapTrimmer, scaled_smallest_singular_value
-from ..mesh import ErrorEstimator, adapted_mesh, halved
+from ..adaptive import Accuracy, AdaptiveContinuation, AdaptiveSettings, Hints, ResultRecorder, StartError
+from ..branch import CONTACT_COLUMNS, Branch
+from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation,
+                            Tracker)
+from ..linalg import scaled_smallest_singular_value
+from ..result import Status
 from ..rod import RodParameters
 from ..system import SYSTEM_PARAMS, RodSystem, check_number
 from .solve import check_tension
 
+__all__ = ["Accuracy", "Recorder", "StabilityCount", "TraceError", "TraceOptions", "ZoneChangeDetector", "run",
+           "straight_seed", "switch_direction", "trace"]
 
-class TraceError(ValueError):
+
+class TraceError(StartError):
     """A trace that cannot start (the message says why, in one line)."""
 
 
@@ -110,81 +110,40 @@ class TraceOptions:
     def as_dict(self) -> dict:
         return asdict(self)
 
+    def continuation_settings(self, param: str) -> ContinuationSettings:
+        """The tracker's settings: steps, the parameter's bounds (``phi_min, phi_max`` or ``p_range``)."""
+        if param == "phi_L":
+            p_min, p_max = self.phi_min, self.phi_max
+        elif self.p_range is not None:
+            p_min, p_max = self.p_range
+        else:
+            raise TraceError(f"a trace in {param} needs its range (p_range / --range A B)")
+        return ContinuationSettings(ds=self.ds, ds_min=self.ds_min, ds_max=self.ds_max, p_min=p_min, p_max=p_max,
+                                    max_steps=self.max_steps, direction=self.direction, forced=tuple(self.forced))
+
+    def adaptive_settings(self) -> AdaptiveSettings:
+        """The adaptive loop's settings (its other limits at their defaults)."""
+        return AdaptiveSettings(max_error=self.max_error, fold_error=self.fold_error, adapt=self.adapt,
+                                N_max=self.N_max)
+
+    def events(self) -> list[Event]:
+        """The rod's guards: validity (the Eulerian description ends), a stretch factor through 0, and
+        ``stretch_max``; each stops the trace with its status."""
+        o = self
+        events = [Event(f"validity guard: min d3.K3 reached min_alignment = {o.min_alignment:g} (the rod is about "
+                        f"to fold back over the reference curve: the Eulerian description ends)",
+                        lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6,
+                        label="validity_guard", status=Status.VALIDITY_GUARD),
+                  Event("the stretch factor reached 0 (compressed through zero length: not physical)",
+                        lambda q: q.data["alpha_min"], stop=True, tol=1e-6, label="stretch_factor_zero",
+                        status=Status.VALIDITY_GUARD)]
+        if o.stretch_max is not None:
+            events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
+                                lambda q: o.stretch_max - q.data["stretch"], stop=True, label="stretch_max"))
+        return events
+
 
 OPTION_NAMES = tuple(f.name for f in fields(TraceOptions))
-# branch-table columns of a trace inside a conduit (rodcont.contact): the narrowest gap c - |Delta|,
-# the integral of the wall force, the number of contact zones
-CONTACT_COLUMNS = ("min_gap", "side_force", "contact_zones")
-
-
-# --------------------------------------------------------------------------
-# Accuracy: estimated error of each point, measured where it matters
-# --------------------------------------------------------------------------
-class Accuracy:
-    """The estimated error of each point, cheap where it is small.
-
-    The full estimate (one Newton step in the richer space) costs a few
-    steps; between two of them the error is taken proportional to the defect
-    (the residual between collocation points, computed at every point
-    anyway), with the ratio of the last measurement. Before the first
-    measurement on a mesh the ratio is a pessimistic prior, ``PRIOR = 1e-2``
-    (measured along the paper's branches it is 1e-6 to 1e-4): a mesh that
-    obviously resolves the solution is not measured at all. It is measured at
-    every fold, branch point and event, whenever the defect has changed
-    sixteenfold since (or doubled, once the guess is within a fiftieth of the
-    adaptation threshold), every ``every`` points, and whenever the guess
-    comes within half of the threshold.
-    """
-
-    PRIOR = 1e-2
-
-    def __init__(self, max_error: float, every: int = 25):
-        self.max_error = max_error
-        self.trigger = max_error / 10.0
-        self.every = every
-        self.estimators: dict = {}
-        self.ratio = None
-        self.defect = None
-        self.since = 0
-        self.measurements = 0
-
-    def reset(self) -> None:
-        self.ratio = self.defect = None
-
-    def estimator(self, system: RodSystem) -> ErrorEstimator:
-        key = id(system)
-        if key not in self.estimators:
-            if len(self.estimators) > 4:
-                self.estimators.clear()
-            self.estimators[key] = (system, ErrorEstimator(system))
-        return self.estimators[key][1]
-
-    def measure(self, system: RodSystem, pt: Point) -> float:
-        e = self.estimator(system).estimate(pt.x, pt.p, (pt.tx, pt.tp))
-        d = max(float(pt.data.get("defect", 0.0)), 1e-300)
-        self.ratio, self.defect, self.since = e / d, d, 0
-        self.measurements += 1
-        pt.data["error"] = e
-        return e
-
-    def __call__(self, system: RodSystem, pt: Point) -> float:
-        d = max(float(pt.data.get("defect", 0.0)), 1e-300)
-        self.since += 1
-        special = pt.kind not in (Kind.REGULAR, Kind.START)
-        if self.ratio is None:  # nothing measured on this mesh yet: the pessimistic prior
-            e = self.PRIOR * d
-            if special or e > self.trigger / 2:
-                return self.measure(system, pt)
-            pt.data["error"] = e
-            return e
-        e = self.ratio * d
-        drift = d > 16 * self.defect or d < self.defect / 16
-        if (special or drift or self.since >= self.every or e > self.trigger / 2
-                or (d > 2 * self.defect and e > self.trigger / 50)):
-            return self.measure(system, pt)
-        pt.data["error"] = e
-        return e
-
 
 #: Seconds between returns of the C heap's free pages to the system in a trace (None: never); see
 #: :class:`rodcont.linalg.HeapTrimmer`.
@@ -192,7 +151,8 @@ TRIM_INTERVAL: float | None = 0.25
 
 
 class StabilityCount:
-    """The number of unstable modes of each stored point (:func:`rodcont.stability.unstable_modes`).
+    """The number of unstable modes of each stored point (:func:`rodcont.stability.unstable_modes`): an
+    observer of the engine (:mod:`rodcont.adaptive`), called before each point is stored.
 
     The count of divergent modes changes only where the Jacobian at fixed
     ``phi_L`` is singular: at folds and branch points. It is computed (an
@@ -207,8 +167,12 @@ class StabilityCount:
     eigenvalues crossed zero unseen: the branch-point detector watches the
     sign of a determinant, which an even number of crossings in one step
     (a symmetric and an antisymmetric mode at nearly the same load: lateral
-    buckling in a pipe) leaves unchanged. That is reported in ``missed``
-    (and warned): ``(parameter before, parameter after, count before, count after)``.
+    buckling in a pipe) leaves unchanged. Where the count changed is then found
+    by bisection over the stored points since the last count (counted at those
+    with a solution; one without, in a thinned run, carries its neighbour's), and
+    the column is corrected there, in memory and in the file. That is reported in
+    ``missed`` (and warned): ``(parameter before, parameter after, count before,
+    count after)``, the interval the bisection left around the change(s).
     """
 
     def __init__(self, every: int = 50):
@@ -216,59 +180,128 @@ class StabilityCount:
         self.last = None
         self.fresh = True
         self.since = 0
-        self.ref = None       # (count, parameter) at the last counted non-singular point
+        self.ref = None       # (count, parameter, index) at the last counted non-singular point
         self.crossings = 0    # folds and branch points located since then
         self.missed: list = []
         self.k = 8            # eigenvalues asked of ARPACK: the last count's (it grows along a branch)
 
-    def __call__(self, system: RodSystem, pt: Point) -> int:
+    def count(self, system: RodSystem, x, value: float) -> int:
+        """Method 1 at one point of ``system`` (a trace in another parameter counted at fixed ``phi_L``)."""
+        from ..stability import spectrum
+        if system.param == "phi_L":
+            at, phi = system, value
+        else:  # the point's parameters as the base of a Phi-system (same controls)
+            at = RodSystem.__new__(RodSystem)
+            at.__dict__.update(system.__dict__)
+            at.base, at.param, at.index, at.scale = system.params(value), "phi_L", 0, 1.0
+            phi = float(at.base[0])
+        try:
+            sp = spectrum(at, x, phi, k=self.k)
+        except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
+            raise RuntimeError(f"stability count failed at {system.param} = {value:.10g}: {exc}") from exc
+        self.k = max(sp.k, 8)
+        return int(sp.unstable)
+
+    def __call__(self, system: RodSystem, pt: Point, recorder=None) -> int:
         if not system.straight:
             pt.data["unstable_modes"] = -1
             return -1
+        self._system = system
         self.since += 1
         special = pt.kind not in (Kind.REGULAR,)
         if self.last is None or self.fresh or special or self.since >= self.every:
-            from ..stability import spectrum
-            if system.param == "phi_L":
-                at, phi = system, pt.p
-            else:  # the point's parameters as the base of a Phi-system (same controls)
-                at = RodSystem.__new__(RodSystem)
-                at.__dict__.update(system.__dict__)
-                at.base, at.param, at.index, at.scale = system.params(pt.p), "phi_L", 0, 1.0
-                phi = float(at.base[0])
-            try:
-                sp = spectrum(at, pt.x, phi, k=self.k)
-                n = int(sp.unstable)
-                self.k = max(sp.k, 8)
-            except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
-                raise RuntimeError(f"stability count failed at {system.param} = {pt.p:.10g}: {exc}") from exc
-            if pt.kind in (Kind.FOLD, Kind.BRANCH_POINT):
-                self.crossings += 1  # singular here: its count is not a reference
-            elif pt.kind == Kind.START and self.ref is None:
-                pass  # a trace may start at a fold or a branch point (a restart, a switch): not a reference
-            else:
-                if self.ref is not None and abs(n - self.ref[0]) > self.crossings:
-                    self.missed.append((self.ref[1], float(pt.p), self.ref[0], n))
-                    import warnings
-                    warnings.warn(f"the number of unstable modes changed from {self.ref[0]} to {n} between "
-                                  f"{system.param} = {self.ref[1]:.10g} and {pt.p:.10g} across "
-                                  f"{self.crossings} located fold(s) or branch point(s): more eigenvalues "
-                                  f"crossed zero than were seen (the branch-point test watches a determinant's "
-                                  f"sign, which two crossings in one step leave unchanged); "
-                                  + ("here the rod is symmetric about its axis and its eigenvalues cross in "
-                                     "pairs: a weight across the axis, however small, separates them"
-                                     if _symmetric_about_axis(system) else
-                                     "trace that interval with a smaller --ds-max to separate them"
-                                     + "; or the trace went on along another branch close to its own (seen "
-                                       "in T on a rod pressed on a wall, past a branch point): a second trace "
-                                       "with other steps shows which"),
-                                  RuntimeWarning, stacklevel=2)
-                self.ref, self.crossings = (n, float(pt.p)), 0
-            self.last, self.since = n, 0
+            index = len(recorder.result) if recorder is not None else None
+            self._check(system, self.count(system, pt.x, pt.p), pt, index, recorder)
             self.fresh = special and (pt.kind != Kind.START or self.ref is None)
         pt.data["unstable_modes"] = self.last
         return self.last
 
+    def _check(self, system, n: int, pt: Point, index, recorder) -> None:
+        if pt.kind in (Kind.FOLD, Kind.BRANCH_POINT):
+            self.crossings += 1  # singular here: its count is not a reference
+        elif pt.kind == Kind.START and self.ref is None:
+            pass  # a trace may start at a fold or a branch point (a restart, a switch): not a reference
+        else:
+            if self.ref is not None and abs(n - self.ref[0]) > self.crossings:
+                self._missed(system, n, float(pt.p), index, recorder)
+            self.ref, self.crossings = (n, float(pt.p), index), 0
+        self.last, self.since = n, 0
+
+    def finish(self, recorder) -> None:
+        """The last stored point, if its count was carried: counted, and the column corrected if it changed."""
+        result = recorder.result
+        i = len(result) - 1
+        if self._system is None or self.since == 0 or self.ref is None or i < 0 \
+                or not np.size(result.coefficients[i]):
+            return
+        system = self._system_at(self._system, result, i)
+        p = float(result.table[result.param][i])
+        n = self.count(system, result.coefficients[i], p)
+        if n != result.table["unstable_modes"][i]:
+            if abs(n - self.ref[0]) > self.crossings:
+                self._missed(system, n, p, i, recorder)
+            recorder.correct("unstable_modes", i, n)
+
+    def _missed(self, system, n: int, p: float, index, recorder) -> None:
+        n0, p0 = self.ref[0], self.ref[1]
+        bracket = (p0, p)
+        if recorder is not None and index is not None and self.ref[2] is not None:
+            result = recorder.result
+            lo, hi = self._bisect(system, recorder, self.ref[2], index, n0, n)
+            value = lambda j: float(result.table[result.param][j]) if j < len(result) else p  # noqa: E731
+            bracket = (value(lo), value(hi))
+        self.missed.append((bracket[0], bracket[1], n0, n))
+        warnings.warn(f"the number of unstable modes changed from {n0} to {n} between {system.param} = "
+                      f"{bracket[0]:.10g} and {bracket[1]:.10g} across {self.crossings} located fold(s) or branch "
+                      f"point(s): more eigenvalues crossed zero than were seen (the branch-point test watches a "
+                      f"determinant's sign, which two crossings in one step leave unchanged); "
+                      + ("here the rod is symmetric about its axis and its eigenvalues cross in pairs: a weight "
+                         "across the axis, however small, separates them" if _symmetric_about_axis(system) else
+                         "trace that interval with a smaller --ds-max to separate them; or the trace went on "
+                         "along another branch close to its own (seen in T on a rod pressed on a wall, past a "
+                         "branch point): a second trace with other steps shows which"),
+                      RuntimeWarning, stacklevel=3)
+
+    _system = None
+
+    @staticmethod
+    def _system_at(system, result, i):
+        mesh = np.asarray(result.meshes[i], float)
+        return system if np.array_equal(mesh, system.breakpoints) else system.with_mesh(mesh)
+
+    def _bisect(self, system, recorder, i0: int, i1: int, n0: int, n1: int):
+        """Counts at stored points between ``i0`` (count ``n0``) and ``i1`` (``n1``; the point about to be
+        stored, or the last one) by bisection, the column corrected between; the bracket of the change(s)."""
+        result = recorder.result
+        kinds, values = result.table["kind"], result.table[result.param]
+        probes = [j for j in range(i0 + 1, min(i1, len(result))) if kinds[j] in ("regular", "forced")
+                  and np.size(result.coefficients[j])]
+        known = {i0: n0, i1: n1}
+
+        def split(a, b):
+            inner = [j for j in probes if a < j < b]
+            if known[a] == known[b] or not inner:
+                return
+            m = inner[len(inner) // 2]
+            known[m] = self.count(self._system_at(system, result, m), result.coefficients[m], float(values[m]))
+            split(a, m)
+            split(m, b)
+
+        split(i0, i1)
+        value = n0
+        for j in range(i0 + 1, min(i1, len(result))):
+            if j in known:
+                value = known[j]
+            elif kinds[j] not in ("regular", "forced"):
+                continue  # a special point keeps its own count
+            if result.table["unstable_modes"][j] != value:
+                recorder.correct("unstable_modes", j, value)
+        order = sorted(known)
+        first = next(j for j in order if known[j] != n0)
+        last = next(j for j in reversed(order) if known[j] != n1)
+        lo = order[order.index(first) - 1]
+        hi = order[order.index(last) + 1]
+        return lo, hi
 
 # --------------------------------------------------------------------------
 # Starts
@@ -318,7 +351,7 @@ def switch_direction(sysm: RodSystem, x: np.ndarray, value: float, direction: tu
 # --------------------------------------------------------------------------
 # Recording
 # --------------------------------------------------------------------------
-class Recorder:
+class Recorder(ResultRecorder):
     """Adds points to a :class:`Branch` and, if any, to a branch-file group; publishes
     the file on every special point and at least every second."""
 
@@ -327,50 +360,67 @@ class Recorder:
         """``thin = M > 1``: the branch in memory keeps what a file written with ``store_every = M`` keeps
         (the solution of every M-th point, of the special points and of the last; tangents at the special
         points and the last), so a long trace's memory does not grow with every point's unknowns."""
+        super().__init__(branch)
         self.branch, self.writer, self.group, self.contact = branch, writer, group, contact
         self.thin = int(thin)
 
-    def add(self, pt: Point, breakpoints: np.ndarray) -> int:
+    def add(self, pt: Point, problem) -> int:
+        return self.add_row(self.branch.row(pt), pt.x, np.append(pt.tx, pt.tp), problem.breakpoints, pt.message)
+
+    def add_row(self, row: dict, solution, tangent, breakpoints, message: str = "") -> int:
+        """Append one point by its row of values (a tracker point's, or a stored one's)."""
         if self.thin > 1 and len(self.branch):
             # the previous point is no longer the last (its contact rows are computed: fill ran at its add)
             self.branch.thin(len(self.branch) - 1, self.thin)
-        i = self.branch.add(pt, breakpoints)
+        i = self.branch.add_row(row, solution, tangent, breakpoints, message)
         if self.writer is not None:
-            row = dict(pt.data)
-            row["arclength"] = pt.arclength
-            row["dphi_ds"] = self.branch.table["dphi_ds"][-1]
-            row.setdefault("error", np.nan)
-            self.writer.add_point(self.group, row, str(pt.kind), pt.located, pt.x,
-                                  np.append(pt.tx, pt.tp), breakpoints)
+            self.writer.add_point(self.group, dict(row), row["kind"], row["located"], solution, tangent,
+                                  breakpoints)
             if self.contact is not None:
                 self.contact.fill(self.branch)
-            if pt.kind not in (Kind.REGULAR,) or self.writer.due():
+            if row["kind"] != Kind.REGULAR or self.writer.due():
                 self.sync()
                 self.writer.flush()
         return i
 
+    def copy(self, source: Branch, i: int, kind: str | None = None) -> int:
+        """Append point ``i`` of another branch as it is stored there (its kind replaced by ``kind``)."""
+        row = source.row_at(i)
+        if kind is not None:
+            row["kind"] = kind
+        return self.add_row(row, source.coefficients[i], source.tangents[i], source.meshes[i],
+                            source.messages.get(i, ""))
+
+    def correct(self, name: str, i: int, value) -> None:
+        self.branch.table[name][i] = value
+        if self.writer is not None:
+            self.group.correct(name, i, value)
+
     def sync(self) -> None:
         if self.writer is not None:
-            bps = [dict(index=i, phi_L=self.branch.table["phi_L"][i], stretch=self.branch.table["stretch"][i])
-                   for i in self.branch.branch_points]
-            self.group.set_special(self.branch.folds, bps)
+            self.group.set_special(self.branch.folds, list(self.branch.branch_points), self.branch.special)
+
+
+class _RodHints(Hints):
+    """Where a trace fails, the rod's likely causes."""
+
+    def start_failed(self, problem) -> str:
+        # a contact on a mesh too coarse for it is the usual cause in a conduit (the 1 km well at the default
+        # N = 15, 61 with its stations: elements of 16 m in a 5 cm clearance; N = 200 starts)
+        return f" (N = {problem.disc.N} may be too coarse for the contact: raise --N)" if problem.wall is not None else ""
+
+    def stopped(self, status, problem, last) -> str:
+        return _symmetry_hint(problem) or (_singular_hint(*last) if last else "")
+
+
+def _zone_detectors(system: RodSystem) -> list:
+    """Inside a conduit: contact onset, lift-off, merges and splits (one detector per mesh)."""
+    return [ZoneChangeDetector(system)] if system.wall is not None else []
 
 
 # --------------------------------------------------------------------------
 # The driver
 # --------------------------------------------------------------------------
-@dataclass
-class _Segment:
-    system: RodSystem
-    x: np.ndarray
-    p: float
-    tangent: tuple | None
-    exact: bool = False
-    # the start is a point not yet stored (a step's end, re-converged on the new mesh): store it, at this
-    # arclength; otherwise the start is the last stored point, converged again
-    record_at: float | None = None
-
-
 def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tangent0=None, exact: bool = False,
         branch: Branch | None = None, recorder: Recorder | None = None,
         callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None) -> Branch:
@@ -378,203 +428,215 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
 
     ``tangent0``: the direction to leave by (``(tx, tp)``), else ``options.direction``
     in the parameter. ``exact``: ``(x0, p0)`` is a solution used as is (branch switching).
+    The engine is :class:`rodcont.adaptive.AdaptiveContinuation`; a first point that cannot be
+    made is a :class:`TraceError`.
     """
     o = options
     rod = system.rod
     if branch is None:
-        branch = Branch(gamma=system.gamma if rod.w > 0 else math.nan, rod=rod, N=system.disc.N, k=system.disc.k,
-                        param=system.param)
+        branch = Branch(system.gamma if rod.w > 0 else math.nan, rod, system.disc.N, system.disc.k, system.param,
+                        curve=system.curve, wall=system.wall)
     recorder = recorder or Recorder(branch)
-    if system.param == "phi_L":
-        p_min, p_max = o.phi_min, o.phi_max
-    elif o.p_range is not None:
-        p_min, p_max = o.p_range
-    else:
-        raise TraceError(f"a trace in {system.param} needs its range (p_range / --range A B)")
-    if settings is None:
-        settings = ContinuationSettings(ds=o.ds, ds_min=o.ds_min, ds_max=o.ds_max, p_min=p_min, p_max=p_max,
-                                        max_steps=o.max_steps, direction=o.direction, forced=tuple(o.forced))
-    events = [Event(f"validity guard: min d3.K3 reached min_alignment = {o.min_alignment:g} (the rod is about "
-                    f"to fold back over the reference curve: the Eulerian description ends)",
-                    lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6),
-              Event("the stretch factor reached 0 (compressed through zero length: not physical)",
-                    lambda q: q.data["alpha_min"], stop=True, tol=1e-6)]
-    # inside a conduit: contact onset, lift-off, merges and splits (ZoneChangeDetector, per segment)
-    if o.stretch_max is not None:
-        events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
-                            lambda q: o.stretch_max - q.data["stretch"], stop=True))
-    accuracy = Accuracy(o.max_error)
+    settings = settings or o.continuation_settings(system.param)
     stability = StabilityCount()
     stability.missed = branch.missed_crossings
-    trim_heap = HeapTrimmer(TRIM_INTERVAL)
-    t_start = time.perf_counter()
-    seg = _Segment(system, np.asarray(x0, float), float(p0), tangent0, exact)
-    segments = 0
-    start_attempts = 0
-    remeshes_here = 0  # remeshes since the last stored point: more than a few means no progress
-    failed_remeshes = 0
-    last_recorded: tuple | None = None  # (point, system) of the last stored point
-    reason = StopReason(Stop.START_FAILED, "not started")
-    steps = iterations = 0
-    step_in_use = None  # the step size reached before a remesh: a new segment goes on with it
+    branch.settings["trace"] = o.as_dict()
+    engine = AdaptiveContinuation(system, x0, p0, settings, o.adaptive_settings(), tangent0=tangent0,
+                                  exact_start=exact, events=o.events(), detectors=_zone_detectors,
+                                  observers=[stability], recorder=recorder, callback=callback, hints=_RodHints(),
+                                  heap_trim_interval=TRIM_INTERVAL)
     try:
-        while True:
-            sysm = seg.system
-            tracker = Tracker(sysm, seg.x, seg.p, settings, monitor=sysm.outputs, events=events,
-                              tangent0=seg.tangent, exact_start=seg.exact)
-            tracker.unlocated = branch.unlocated
-            if sysm.wall is not None:
-                tracker.detectors.append(ZoneChangeDetector(sysm))
-            if step_in_use is not None:
-                # not the initial ds: where a stiff stretch forced small steps, a fresh segment that
-                # starts with ds = 0.1 leaps past it, onto another branch (seen at a contact onset)
-                tracker.ds = step_in_use
-            try:
-                first = tracker.start()
-            except StopContinuation as exc:
-                if last_recorded is None:
-                    # a contact on a mesh too coarse for it is the usual cause in a conduit (the 1 km well
-                    # at the default N = 15, 61 with its stations: elements of 16 m in a 5 cm clearance;
-                    # N = 200 starts)
-                    advice = f" (N = {sysm.disc.N} may be too coarse for the contact: raise --N)" \
-                        if sysm.wall is not None else ""
-                    raise TraceError(str(exc) + advice) from None
-                # the adapted mesh did not converge: from the last stored point, halve every
-                # subinterval of its mesh instead (a nested space: the point carries over exactly)
-                failed_remeshes += 1
-                pt, old = last_recorded
-                if failed_remeshes > 3 or old.disc.N * 2 > o.N_max:
-                    reason = StopReason(Stop.NO_CONVERGENCE, f"accuracy guard: no converged solution on a refined mesh "
-                                                    f"at p = {pt.p:.10g} ({exc})")
-                    break
-                new = old.with_mesh(old.conform(halved(old.disc.breakpoints)))
-                seg = _Segment(new, new.disc.transfer(pt.x, old.disc), pt.p,
-                               (new.disc.transfer(pt.tx, old.disc), pt.tp))
-                accuracy.reset()
-                continue
-            steps += tracker.steps
-            if tracker.start_on_fold and last_recorded is None:
-                warnings.warn(f"the start is a fold in {sysm.param} (d{sysm.param}/ds = 0 there): {sysm.param} moves "
-                              f"the same way on both sides, so the direction asked for cannot choose; the trace "
-                              f"follows one side (its other side: the same command with the other --direction)",
-                              RuntimeWarning, stacklevel=2)
-            err = accuracy(sysm, first)
-            if err > accuracy.trigger and o.adapt and start_attempts < 6 and sysm.disc.N < o.N_max:
-                start_attempts += 1
-                seg = dataclasses.replace(_remesh(sysm, first, err, accuracy, o), record_at=seg.record_at)
-                continue
-            if err > o.max_error:
-                if last_recorded is None:
-                    raise TraceError(f"accuracy guard already violated at the start: estimated error "
-                                     f"{err:.2g} > max_error = {o.max_error:g} with N = {sysm.disc.N}"
-                                     + ("" if o.adapt else " (the mesh is fixed: raise N or let it adapt)")
-                                     + ("" if sysm.disc.N < o.N_max else f" (N_max = {o.N_max} reached)"))
-                why = (f"N_max = {o.N_max} reached" if sysm.disc.N >= o.N_max or not o.adapt
-                       else f"{start_attempts} refinements did not bring it down")
-                reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
-                                                f"{o.max_error:g} at p = {first.p:.10g} (N = {sysm.disc.N}; {why})")
-                break
-            start_attempts = 0
-            if last_recorded is None:
-                first.arclength = 0.0
-                why = tracker._check_start(first)
-                if why is not None:
-                    raise TraceError(f"cannot start there: {why.message}")
-                stability(sysm, first)
-                recorder.add(first, sysm.disc.breakpoints)
-                last_recorded = (first, sysm)
-                if callback is not None:
-                    callback(first)
-            elif seg.record_at is not None:
-                first.arclength, first.kind = seg.record_at, Kind.REGULAR
-                stability(sysm, first)
-                recorder.add(first, sysm.disc.breakpoints)
-                last_recorded = (first, sysm)
-                if callback is not None:
-                    callback(first)
-            else:
-                first.arclength = last_recorded[0].arclength
-            next_seg = None
-            tracker.current = first
-            arc0 = first.arclength
-            for pt in tracker:
-                pt.arclength += arc0
-                err = accuracy(sysm, pt)
-                if (pt.kind == Kind.FOLD and err > o.fold_error and o.adapt and sysm.disc.N < o.N_max
-                        and remeshes_here < 3):
-                    # locate this fold again on a mesh refined for it
-                    remeshes_here += 1
-                    base = last_recorded[0]
-                    next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
-                                       accuracy, o, at_least=err, target=o.fold_error / 10, ahead=(sysm, pt))
-                    break
-                if err > o.max_error:
-                    if o.adapt and sysm.disc.N < o.N_max and remeshes_here < 4:
-                        remeshes_here += 1
-                        base = last_recorded[0]
-                        if base.kind == Kind.BRANCH_POINT and pt.kind == Kind.REGULAR:
-                            # not from the branch point: there the bordered matrix is singular, and a segment
-                            # started on it went on along the other branch (a compressed rod on a wall, in T).
-                            # From this step's end instead, on the branch, stored once converged on the mesh
-                            next_seg = dataclasses.replace(
-                                _remesh(sysm, pt, err, accuracy, o, at_least=err), record_at=pt.arclength)
-                            break
-                        next_seg = _remesh(last_recorded[1], base, accuracy.measure(last_recorded[1], base),
-                                           accuracy, o, at_least=err, ahead=(sysm, pt))
-                        break
-                    reason = StopReason(Stop.EVENT, f"accuracy guard: estimated error {err:.2g} > max_error = "
-                                                    f"{o.max_error:g} at p = {pt.p:.10g}"
-                                                    + ("" if o.adapt else " (the mesh is fixed: raise N or let it adapt)")
-                                                    + ("" if sysm.disc.N < o.N_max else
-                                                       f" (N_max = {o.N_max} reached)")
-                                                    + (" (refining the mesh did not help)" if remeshes_here >= 4 else ""))
-                    break
-                stability(sysm, pt)
-                recorder.add(pt, sysm.disc.breakpoints)
-                trim_heap()
-                last_recorded = (pt, sysm)
-                remeshes_here = 0
-                if callback is not None:
-                    callback(pt)
-                # not at a point where the trace stops (a guard, a bound: the tracker's stop is set when it
-                # hands that point over): a new segment from there would start past the guard and never see it
-                # cross again (seen: the validity guard passed on a deep sag, L = 10). Nor at a special point
-                # whose location failed: it is near a singular point, where a new segment's first steps
-                # diverge at every size (seen: a helix in a pipe, N = 60, at its branch point Phi = 16.46);
-                # the step's end follows at once and is refined from instead. Nor at a branch point, where the
-                # bordered matrix of the new segment's start and first step is singular: its first step went
-                # on along the other branch (a compressed rod on a wall, in T, eps = 1e-4: the trace ended
-                # with one contact zone instead of two)
-                if (err > accuracy.trigger and o.adapt and sysm.disc.N < o.N_max and tracker.stop is None
-                        and pt.located and pt.kind != Kind.BRANCH_POINT):
-                    next_seg = _remesh(sysm, pt, err, accuracy, o)
-                    break
-            steps += tracker.steps
-            iterations += tracker.newton_iterations
-            segments += 1
-            step_in_use = tracker.ds
-            if next_seg is not None:
-                seg = next_seg
-                branch.remeshes += 1
-                continue
-            if tracker.stop is not None:
-                reason = tracker.stop
-            break
-    except StopContinuation as exc:
-        reason = StopReason(Stop.START_FAILED, str(exc))
-    except KeyboardInterrupt:
-        reason = StopReason(Stop.EVENT, "interrupted")
-        raise
-    finally:
-        hint = ""
-        if reason.status in (Stop.STEP_TOO_SMALL, Stop.NO_CONVERGENCE):
-            hint = _symmetry_hint(system) or (_singular_hint(*last_recorded) if last_recorded else "")
-        branch.stop_reason = reason.message + hint
-        branch.steps += steps
-        branch.newton_iterations += iterations
-        branch.elapsed += time.perf_counter() - t_start
-        recorder.sync()
+        engine.run()
+    except StartError as exc:
+        raise TraceError(str(exc), exc.status) from None
     return branch
+
+
+def _options(options: dict, where: str) -> TraceOptions:
+    try:
+        return TraceOptions(**options)
+    except TypeError as exc:
+        raise TypeError(str(exc).replace("TraceOptions.__init__()", where)) from None
+
+
+def _rod_and_tension(gamma, rod, N, k, T, param, start):
+    """The checked rod, mesh size and tension of a trace (``ValueError``/``TypeError`` naming the input)."""
+    if rod is None:
+        rod = RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    if not 1 <= N <= 100000:
+        raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N}")
+    if not 1 <= k <= 7:
+        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k}")
+    if param not in SYSTEM_PARAMS:
+        raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
+    if T is None:
+        if gamma is None:
+            raise ValueError("give gamma (T = gamma w L) or T")
+        gamma = check_number("gamma", gamma)
+        if rod.w == 0:
+            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
+        T = rod.tension(gamma)
+    T = check_number("T", T)
+    if not math.isfinite(T) or abs(T) > 1e12 * max(rod.EA, rod.EI / rod.L**2):
+        raise ValueError(f"the tension T = {T:.6g} is not a usable number")
+    if start is None:  # from the sag or the straight state, unique only above the Euler load; a stored point is
+        check_tension(rod, T)  # an equilibrium wherever it was reached
+    return rod, N, k, T
+
+
+def _curve_and_wall(curve, wall, rod, from_straight):
+    if curve is not None and not isinstance(curve, str):
+        from ..curves import ReferenceCurve
+        if not isinstance(curve, ReferenceCurve):
+            raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {curve!r}")
+    if isinstance(curve, str):
+        from ..curves import parse_reference
+        curve = parse_reference(curve, rod.L)
+    if wall is not None:
+        from ..contact import Wall
+        if not isinstance(wall, Wall):
+            raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        if from_straight is not None:
+            raise ValueError("--from-straight is not available inside a conduit (trace from the sag instead)")
+    return curve, wall
+
+
+@dataclass
+class _Start:
+    system: RodSystem
+    x0: np.ndarray
+    p0: float
+    tangent0: tuple | None = None
+    exact: bool = False
+
+
+def _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall) -> _Start:
+    """Where a trace starts: the straight state, a stored point (with its direction), or the sag."""
+    if from_straight is not None:
+        phi0 = check_number("from_straight", from_straight)
+        if curve is not None and not getattr(curve, "constant_frame", False):
+            raise ValueError("--from-straight needs the straight reference (the straight rod state lives there)")
+        sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints)
+        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints)
+        return _Start(system, x0, phi0 if param == "phi_L" else system.value())
+    if start is not None:
+        return _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall)
+    if param != "phi_L":
+        raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
+    system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve, wall=wall)
+    x0 = system.model.initial_guess(system.disc, system.base[1])
+    if wall is not None:
+        from .solve import ConvergenceError, settle_in_conduit
+        try:
+            with np.errstate(all="ignore"):
+                x0 = settle_in_conduit(system, x0, system.params(0.0))
+        except ConvergenceError as exc:
+            raise TraceError(str(exc)) from None
+    return _Start(system, x0, 0.0)
+
+
+def _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall) -> _Start:
+    x0, p0, t0 = start
+    system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
+                       breakpoints=breakpoints, curve=curve, wall=wall)
+    x0 = np.asarray(x0, float)
+    if x0.size != system.disc.size:
+        raise ValueError("the start point does not fit this mesh (N, k)")
+    p0 = check_number("start value", p0)
+    tangent0 = None
+    if t0 is not None:
+        tangent0 = (np.asarray(t0[0], float), float(t0[1]))
+        if tangent0[0].size != x0.size:
+            tangent0 = (np.zeros(x0.size), tangent0[1] if tangent0[1] != 0 else 1.0)
+    if not switch:
+        return _Start(system, x0, p0, tangent0)
+    if tangent0 is None:
+        raise ValueError("switch needs the incoming direction at the branch point")
+    return _Start(system, x0, p0, switch_direction(system, x0, p0, tangent0), True)
+
+
+def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
+          T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
+          start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
+          breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
+          store_every: int = 1, curve=None, wall=None, callback: Callable[[Point], None] | None = None,
+          settings: ContinuationSettings | None = None, **options) -> Branch:
+    """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
+
+    In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
+    point ``start = (x, value, direction)`` (``direction = (dx, dvalue)`` or
+    None; ``breakpoints`` its mesh); or from the near-straight state at
+    ``from_straight = PHI`` (:func:`straight_seed`). ``param`` other than
+    ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
+    ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
+    along the other branch. ``curve``: the reference curve
+    (:mod:`rodcont.curves`; default the straight span ``L e1``); ``wall``: a conduit
+    wall around it (:class:`rodcont.contact.Wall`; default none). ``store_every``: keep the solution (coefficients,
+    tangent) of every ``store_every``-th point only, and of every special point
+    and the last one, in the file and in the returned branch (smaller files, and the memory of a long
+    trace; the table keeps every point, ``coefficients[i]`` is empty where the solution was not kept).
+    ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
+    The branch's ``status`` says why it ended (:class:`rodcont.result.Status`), ``stop_reason`` in words.
+    """
+    opts = _options(options, "trace()")
+    rod, N, k, T = _rod_and_tension(gamma, rod, N, k, T, param, start)
+    phi_L = check_number("phi_L", phi_L)
+    if start is not None and from_straight is not None:
+        raise ValueError("give start or from_straight, not both")
+    if switch and start is None:
+        raise ValueError("switch needs a start point (a branch point) with its incoming direction")
+    curve, wall = _curve_and_wall(curve, wall, rod, from_straight)
+    st = _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall)
+    store_every = check_number("store_every", store_every, integer=True)
+    if store_every < 1:
+        raise ValueError(f"store_every must be >= 1, got {store_every}")
+    settings = settings or opts.continuation_settings(param)
+    attrs = file_meta(rod, T, N, k, param, opts, st.system, meta, settings)
+    branch = Branch(rod.gamma(T) if rod.w > 0 else math.nan, rod, N, k, param, attrs=attrs, curve=st.system.curve,
+                    wall=wall)
+    writer, recorder = _open_output(out, overwrite, attrs, store_every, branch, st.system)
+    try:
+        with np.errstate(all="ignore"):
+            run(st.system, st.x0, st.p0, opts, tangent0=st.tangent0, exact=st.exact, branch=branch,
+                recorder=recorder, callback=callback, settings=settings)
+    finally:
+        if writer is not None:
+            _close_output(writer, branch, recorder.contact)
+    return branch
+
+
+def _open_output(out, overwrite, attrs, store_every, branch, system):
+    """The branch file's writer (None without ``out``) and the recorder that fills branch and file."""
+    writer = group = contact = None
+    if out is not None:
+        from ..branchfile import BranchWriter, check_output
+        check_output(out, overwrite=overwrite)
+        writer = BranchWriter(out, attrs, store_every=store_every)
+        group = writer.group("/", extra_columns=((branch.param,) if branch.param != "phi_L" else ())
+                             + (CONTACT_COLUMNS if system.wall is not None else ()))
+        _mesh_group(writer, system)
+        contact = _ContactRows(system) if system.wall is not None else None
+    return writer, Recorder(branch, writer, group, contact, thin=store_every)
+
+
+def _close_output(writer, branch: Branch, contact) -> None:
+    try:
+        if branch.missed_crossings:
+            writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
+        if branch.unlocated:
+            writer.f.attrs["unlocated"] = json.dumps(branch.unlocated)
+        if contact is not None and len(branch):
+            # the rows are computed as the points are recorded: here at most the last point's (when a second
+            # Ctrl-C came during its computation), so an interrupt does not wait
+            contact.fill(branch)
+            contact.write(writer)
+    finally:
+        writer.close(branch.stop_reason or "interrupted", branch.status if branch.stop_reason else
+                     Status.INTERRUPTED)
 
 
 class ZoneChangeDetector(Detector):
@@ -590,6 +652,7 @@ class ZoneChangeDetector(Detector):
     """
 
     name = "contact onset, lift-off, merge or split of zones"
+    kind = "event:contact"
 
     def __init__(self, system: RodSystem, tol: float = 1e-9):
         self.system, self.tol = system, tol
@@ -644,8 +707,10 @@ class ZoneChangeDetector(Detector):
         f = None
         if g0 * g1 < 0:
             # (g jumps where the pressure's sample changes: a bracket shrunk to rounding is the location)
-            f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), f"event:{self.name}",
+            f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), self.kind,
                                continuous=False)
+            if f is not None:
+                f.message = self.name
         if f is None or others:
             import warnings
             warnings.warn(f"the contact zones changed from {n0} to {n1} between {self.system.param} = "
@@ -696,177 +761,6 @@ def _singular_hint(pt: Point, sysm: RodSystem) -> str:
             f"problem or of the rod, which no step size passes"
             + ("; a different mesh (--N-max, --N) or a larger eps may pass it" if sysm.wall is not None
                else "; a different mesh (--N-max, --N) may pass it") + ")")
-
-
-def _remesh(sysm: RodSystem, pt: Point, err: float, accuracy: Accuracy, o: TraceOptions,
-            at_least: float = 0.0, target: float | None = None, ahead: tuple | None = None) -> _Segment:
-    """A new segment from ``pt`` on a mesh adapted to it (aiming at a tenth of the trigger, or ``target``).
-
-    ``ahead = (system, point)``: the point of a step rejected for its error. The
-    mesh is adapted to it (from its own mesh, which may already be a
-    refinement), and on one mesh to ``pt`` as well: a feature that appears
-    within the step, such as a new contact, is not in ``pt``'s indicator, and a
-    mesh adapted to ``pt`` alone fails the same step again, however often it is
-    refined; one that vanishes within it is in ``pt``'s only.
-    """
-    p = pt.p
-    src, x_src, p_src = (sysm, pt.x, p) if ahead is None else (ahead[0], ahead[1].x, ahead[1].p)
-    indicator = src.interval_defect(x_src, p_src)
-    if ahead is not None and np.array_equal(src.disc.breakpoints, sysm.disc.breakpoints):
-        # on one mesh: the features of both ends of the step (one that lifts off within it is in pt's only)
-        indicator = np.maximum(indicator, sysm.interval_defect(pt.x, p))
-    b = adapted_mesh(src.disc.breakpoints, indicator, src.disc.k, max(err, at_least),
-                     target if target is not None else accuracy.trigger / 10,
-                     N_max=o.N_max)
-    new = sysm.with_mesh(sysm.conform(b))
-    x = new.disc.transfer(pt.x, sysm.disc)
-    tx = new.disc.transfer(pt.tx, sysm.disc)
-    accuracy.reset()
-    return _Segment(new, x, p, (tx, pt.tp))
-
-
-def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
-          T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
-          start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
-          breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
-          store_every: int = 1, curve=None, wall=None, callback: Callable[[Point], None] | None = None,
-          settings: ContinuationSettings | None = None, **options) -> Branch:
-    """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
-
-    In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
-    point ``start = (x, value, direction)`` (``direction = (dx, dvalue)`` or
-    None; ``breakpoints`` its mesh); or from the near-straight state at
-    ``from_straight = PHI`` (:func:`straight_seed`). ``param`` other than
-    ``phi_L`` continues that rod parameter at fixed ``phi_L`` over
-    ``p_range = (lo, hi)``. ``switch``: the start is a branch point, leave it
-    along the other branch. ``curve``: the reference curve
-    (:mod:`rodcont.curves`; default the straight span ``L e1``); ``wall``: a conduit
-    wall around it (:class:`rodcont.contact.Wall`; default none). ``store_every``: keep the solution (coefficients,
-    tangent) of every ``store_every``-th point only, and of every special point
-    and the last one, in the file and in the returned branch (smaller files, and the memory of a long
-    trace; the table keeps every point, ``coefficients[i]`` is empty where the solution was not kept).
-    ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
-    """
-    try:
-        opts = TraceOptions(**options)
-    except TypeError as exc:
-        raise TypeError(str(exc).replace("TraceOptions.__init__()", "trace()")) from None
-    if rod is None:
-        rod = RodParameters()
-    if not isinstance(rod, RodParameters):
-        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
-    N = check_number("N", N, integer=True)
-    k = check_number("k", k, integer=True)
-    if not 1 <= N <= 100000:
-        raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N}")
-    if not 1 <= k <= 7:
-        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k}")
-    if param not in SYSTEM_PARAMS:
-        raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
-    if T is None:
-        if gamma is None:
-            raise ValueError("give gamma (T = gamma w L) or T")
-        gamma = check_number("gamma", gamma)
-        if rod.w == 0:
-            raise ValueError("gamma = T / (w L) is undefined for a weightless rod: give T")
-        T = rod.tension(gamma)
-    T = check_number("T", T)
-    if not math.isfinite(T) or abs(T) > 1e12 * max(rod.EA, rod.EI / rod.L**2):
-        raise ValueError(f"the tension T = {T:.6g} is not a usable number")
-    if start is None:  # from the sag or the straight state, unique only above the Euler load; a stored point is
-        check_tension(rod, T)  # an equilibrium wherever it was reached
-    phi_L = check_number("phi_L", phi_L)
-    if start is not None and from_straight is not None:
-        raise ValueError("give start or from_straight, not both")
-    if switch and start is None:
-        raise ValueError("switch needs a start point (a branch point) with its incoming direction")
-    tangent0, exact = None, False
-    if curve is not None and not isinstance(curve, str):
-        from ..curves import ReferenceCurve
-        if not isinstance(curve, ReferenceCurve):
-            raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {curve!r}")
-    if isinstance(curve, str):
-        from ..curves import parse_reference
-        curve = parse_reference(curve, rod.L)
-    if wall is not None:
-        from ..contact import Wall
-        if not isinstance(wall, Wall):
-            raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
-        if from_straight is not None:
-            raise ValueError("--from-straight is not available inside a conduit (trace from the sag instead)")
-    if from_straight is not None:
-        phi0 = check_number("from_straight", from_straight)
-        if curve is not None and not getattr(curve, "constant_frame", False):
-            raise ValueError("--from-straight needs the straight reference (the straight rod state lives there)")
-        sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints)
-        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints)
-        p0 = phi0 if param == "phi_L" else system.value()
-    elif start is not None:
-        x0, p0, t0 = start
-        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
-                           breakpoints=breakpoints, curve=curve, wall=wall)
-        x0 = np.asarray(x0, float)
-        if x0.size != system.disc.size:
-            raise ValueError("the start point does not fit this mesh (N, k)")
-        p0 = check_number("start value", p0)
-        if t0 is not None:
-            tangent0 = (np.asarray(t0[0], float), float(t0[1]))
-            if tangent0[0].size != x0.size:
-                tangent0 = (np.zeros(x0.size), tangent0[1] if tangent0[1] != 0 else 1.0)
-        if switch:
-            if tangent0 is None:
-                raise ValueError("switch needs the incoming direction at the branch point")
-            tangent0 = switch_direction(system, x0, p0, tangent0)
-            exact = True
-    else:
-        if param != "phi_L":
-            raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
-        system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve, wall=wall)
-        x0 = system.model.initial_guess(system.disc, system.base[1])
-        p0 = 0.0
-        if wall is not None:
-            from .solve import ConvergenceError, settle_in_conduit
-            try:
-                with np.errstate(all="ignore"):
-                    x0 = settle_in_conduit(system, x0, system.params(p0))
-            except ConvergenceError as exc:
-                raise TraceError(str(exc)) from None
-    branch = Branch(gamma=rod.gamma(T) if rod.w > 0 else math.nan, rod=rod, N=N, k=k, param=param)
-    writer = group = None
-    store_every = check_number("store_every", store_every, integer=True)
-    if store_every < 1:
-        raise ValueError(f"store_every must be >= 1, got {store_every}")
-    if out is not None:
-        from ..branchfile import BranchWriter, check_output
-        check_output(out, overwrite=overwrite)
-        writer = BranchWriter(out, file_meta(rod, T, N, k, param, opts, system, meta), store_every=store_every)
-        group = writer.group("/", extra_columns=((param,) if param != "phi_L" else ())
-                             + (CONTACT_COLUMNS if wall is not None else ()))
-        _mesh_group(writer, system)
-    contact = _ContactRows(system) if writer is not None and wall is not None else None
-    recorder = Recorder(branch, writer, group, contact, thin=store_every)
-    try:
-        with np.errstate(all="ignore"):
-            run(system, x0, p0, opts, tangent0=tangent0, exact=exact, branch=branch, recorder=recorder,
-                callback=callback, settings=settings)
-    except KeyboardInterrupt:
-        branch.stop_reason = "interrupted"
-        raise
-    finally:
-        if writer is not None:
-            try:
-                if branch.missed_crossings:
-                    writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
-                if branch.unlocated:
-                    writer.f.attrs["unlocated"] = json.dumps(branch.unlocated)
-                if contact is not None and len(branch):
-                    # the rows are computed as the points are recorded: here at most the last point's
-                    # (when a second Ctrl-C came during its computation), so an interrupt does not wait
-                    contact.fill(branch)
-                    contact.write(writer)
-            finally:
-                writer.close(branch.stop_reason or "interrupted")
-    return branch
 
 
 class _ContactRows:
@@ -925,8 +819,9 @@ class _ContactRows:
 
 
 def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: TraceOptions, system: RodSystem,
-              extra: dict | None = None) -> dict:
-    """Root attributes of a branch file: the rod, the loads, the mesh and every run setting."""
+              extra: dict | None = None, settings: ContinuationSettings | None = None) -> dict:
+    """Root attributes of a branch file: the rod, the loads, the mesh and every run setting (``settings``:
+    the trace options; ``continuation_settings``, ``adaptive_settings``: the engine's, JSON)."""
     from .. import __version__
     meta = dict(kind="branch", gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=float(T), w=rod.w, EI=rod.EI,
                 GJ=rod.GJ, EA=rod.EA, L=rod.L, N=int(N), k=int(k), param=param,
@@ -936,7 +831,11 @@ def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: Tr
                 # the force scale as resolved (a default follows w or EI, which a trace may change)
                 conduit=(dataclasses.replace(system.wall, force_scale=system.model.contact_scale).spec
                          if system.wall is not None else ""),
-                settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float))
+                settings=json.dumps(dict(opts.as_dict(), rodcont_version=__version__), default=float),
+                adaptive_settings=json.dumps(asdict(opts.adaptive_settings()), default=float))
+    if settings is not None or param == "phi_L" or opts.p_range is not None:
+        meta["continuation_settings"] = json.dumps(asdict(settings or opts.continuation_settings(param)),
+                                                   default=float)
     if rod.w == 0:
         meta["gamma"] = math.nan
     meta.update(extra or {})
