@@ -644,6 +644,21 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
             continue  # a thinned-out point: no solution stored
         if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11 + extra:
             raise BranchFileError(f"{where}: damaged branch file (point {i}: coefficients do not fit its mesh)")
+    folds, bps = _read_tables(where, root, n)
+    special = _read_special(where, root, n)
+    gattrs = {k: _plain(v) for k, v in root.attrs.items()} if name else None
+    mesh = root.file["mesh"]["breakpoints"][()] if "mesh" in root.file else B[0][np.isfinite(B[0])]
+    if "status" in (gattrs if gattrs is not None else attrs):
+        from .result import Status
+        value = (gattrs if gattrs is not None else attrs)["status"]
+        if value not in {s.value for s in Status}:
+            raise BranchFileError(f"{where}: damaged branch file (status = {value!r})")
+    return Branch.from_file(path, attrs, branch, folds, bps, special, mesh, gattrs, name)
+
+
+def _read_tables(where: str, root, n: int) -> tuple[dict, dict]:
+    """``/folds`` and ``/branch_points`` as columns, checked."""
+    h5py = _h5py()
     folds, bps = {}, {"index": np.zeros(0, int)}
     for group, target in (("folds", folds), ("branch_points", bps)):
         if group in root:
@@ -666,15 +681,7 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
             idx = np.asarray(target.get("index", np.zeros(0, int)))
             if idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= n):
                 raise BranchFileError(f"{where}: damaged branch file (/{group}/index out of range)")
-    special = _read_special(where, root, n)
-    gattrs = {k: _plain(v) for k, v in root.attrs.items()} if name else None
-    mesh = root.file["mesh"]["breakpoints"][()] if "mesh" in root.file else B[0][np.isfinite(B[0])]
-    if "status" in (gattrs if gattrs is not None else attrs):
-        from .result import Status
-        value = (gattrs if gattrs is not None else attrs)["status"]
-        if value not in {s.value for s in Status}:
-            raise BranchFileError(f"{where}: damaged branch file (status = {value!r})")
-    return Branch.from_file(path, attrs, branch, folds, bps, special, mesh, gattrs, name)
+    return folds, bps
 
 
 def _read_special(where: str, root, n: int) -> dict | None:

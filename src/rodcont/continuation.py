@@ -53,8 +53,12 @@ its tolerance is kept and marked ``located = False`` (bracketed):
   whose derivative then changes sign twice: the step is halved;
 * branch point: the sign of ``det`` of the bordered Jacobian changes;
 * parameter values (forced points, bounds);
-* user events ``g(point) = 0``: recorded, stopping the trace, or ending a
-  segment (the caller changes the discretisation and starts a new tracker).
+* user events ``g(point) = 0``: recorded, stopping the trace (with the status the event
+  declares), or ending a segment (the caller changes the discretisation and starts a new
+  tracker); the point's kind is ``event:<label>``, its ``message`` the event's sentence.
+
+:func:`continuation` runs one tracker and returns a :class:`rodcont.result.ContinuationResult`;
+:mod:`rodcont.adaptive` runs trackers on a mesh that adapts.
 """
 
 from __future__ import annotations

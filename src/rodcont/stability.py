@@ -493,10 +493,10 @@ class _View:
             self.kind = [str(v) for v in t["kind"]]
             self.rod, self.k = branch.rod, int(branch.k)
             if T is None and make_system is None:
-                if branch.rod.w == 0 or not np.isfinite(branch.gamma):
+                T = getattr(branch, "tension", math.nan)  # a branch in memory or read from a file
+                if not np.isfinite(T):
                     raise ValueError("a weightless branch does not carry its tension: give T")
-                T = branch.rod.tension(branch.gamma)
-        else:                          # BranchData
+        else:                          # a table-less view of a file
             t = branch.branch
             self.phi = np.asarray(t["phi_L"], float)
             self.torque = np.asarray(t["torque"], float)

@@ -83,31 +83,12 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     ``jobs`` workers, all cores if None). ``options`` go to :func:`rodcont.trace`.
     Returns ``{"branches": [summary per Gamma, in the order given], "diagram": path, "jobs": n}``.
     """
-    gammas = list(gammas) if isinstance(gammas, (list, tuple)) else gammas
-    if not isinstance(gammas, list) or not gammas:
-        raise ValueError("sweep needs at least one Gamma")
-    gammas = [check_number("gamma", g) for g in gammas]
-    rod_ = rod or RodParameters()
-    for g in gammas:
-        check_number("T = gamma w L", rod_.tension(g))
-    names = [gamma_name(g) for g in gammas]
-    if len(set(names)) != len(names):
-        raise ValueError("Gamma values must be distinct")
-    if jobs is not None:
-        jobs = check_number("jobs", jobs, integer=True)
-        if jobs < 1:
-            raise ValueError(f"jobs must be >= 1, got {jobs}")
-    rod = rod or RodParameters()
-    if not isinstance(rod, RodParameters):
-        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
-    from .trace import TraceOptions
-    TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate_at", "store_every", "curve")})
+    gammas, rod, jobs = _checked(gammas, rod, jobs, options)
     from ..branchfile import check_output
     os.makedirs(out_dir, exist_ok=True)
     paths = [branch_path(out_dir, g, diagram) for g in gammas]
     for p in paths:
         check_output(p, overwrite=overwrite)
-    rod_d = rod.as_dict()
     own = executor is None
     jobs = jobs or os.cpu_count() or 1
     queue = manager = None
@@ -117,25 +98,10 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
             import multiprocessing
             manager = multiprocessing.Manager()
             queue = manager.Queue()
-    display = _Progress(gammas, progress)
-    results = {}
     try:
-        futures = {executor.submit(trace_to_file, g, p, rod_d, queue, diagram, N=N, k=k, overwrite=overwrite,
+        futures = {executor.submit(trace_to_file, g, p, rod.as_dict(), queue, diagram, N=N, k=k, overwrite=overwrite,
                                    **options): g for g, p in zip(gammas, paths)}
-        pending = set(futures)
-        while pending:
-            done = {f for f in pending if f.done()}
-            for f in done:
-                g = futures[f]
-                results[g] = f.result()
-                display.finish(g, results[g])
-            pending -= done
-            if queue is not None:
-                while not queue.empty():
-                    display.update(*queue.get_nowait())
-            if pending:
-                time.sleep(0.1)
-            display.draw(force=not pending)
+        results = _collect(futures, _Progress(gammas, progress), queue)
     finally:
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
@@ -144,14 +110,61 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     out = dict(branches=[results[g] for g in gammas], jobs=jobs if own else None, diagram=None)
     ok = [r["path"] for r in out["branches"] if r["error"] is None and os.path.exists(r["path"])]
     if plot and ok:
-        from ..branchfile import load_diagram
-        from ..plots import response_diagram
-        path = os.path.join(out_dir, "response_diagram.png")
-        if os.path.lexists(path) and not os.path.isfile(os.path.realpath(path)):
-            raise ValueError(f"cannot write {path}: not a regular file")
-        response_diagram([load_diagram(p) for p in ok], path)
-        out["diagram"] = path
+        out["diagram"] = _plot(ok, out_dir)
     return out
+
+
+def _checked(gammas, rod, jobs, options):
+    """The Gamma values, the rod and the number of jobs of a sweep, checked (one error naming the input)."""
+    gammas = list(gammas) if isinstance(gammas, (list, tuple)) else gammas
+    if not isinstance(gammas, list) or not gammas:
+        raise ValueError("sweep needs at least one Gamma")
+    gammas = [check_number("gamma", g) for g in gammas]
+    rod = rod or RodParameters()
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    for g in gammas:
+        check_number("T = gamma w L", rod.tension(g))
+    names = [gamma_name(g) for g in gammas]
+    if len(set(names)) != len(names):
+        raise ValueError("Gamma values must be distinct")
+    if jobs is not None:
+        jobs = check_number("jobs", jobs, integer=True)
+        if jobs < 1:
+            raise ValueError(f"jobs must be >= 1, got {jobs}")
+    from .trace import TraceOptions
+    TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate_at", "store_every", "curve")})
+    return gammas, rod, jobs
+
+
+def _collect(futures: dict, display, queue) -> dict:
+    """The summaries of the submitted jobs as they finish, the progress display kept up."""
+    results = {}
+    pending = set(futures)
+    while pending:
+        done = {f for f in pending if f.done()}
+        for f in done:
+            g = futures[f]
+            results[g] = f.result()
+            display.finish(g, results[g])
+        pending -= done
+        if queue is not None:
+            while not queue.empty():
+                display.update(*queue.get_nowait())
+        if pending:
+            time.sleep(0.1)
+        display.draw(force=not pending)
+    return results
+
+
+def _plot(paths: list, out_dir: str) -> str:
+    from ..branchfile import load_diagram
+    from ..plots import response_diagram
+    path = os.path.join(out_dir, "response_diagram.png")
+    if os.path.lexists(path) and not os.path.isfile(os.path.realpath(path)):
+        raise ValueError(f"cannot write {path}: not a regular file")
+    response_diagram([load_diagram(p) for p in paths], path)
+    return path
 
 
 class _Progress:
