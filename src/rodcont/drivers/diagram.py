@@ -188,30 +188,8 @@ def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesse
         # a guess on a known root is where deflation is infinite: start beside it
         if any(max_norm(x - r) <= 1e-8 * (1 + max_norm(r)) for r in roots):
             x = x + 1e-2 * sx * rng.standard_normal(n)
-        ok = False
-        for _ in range(max_iter):
-            F, J, _ = system.disc.linearise(x, p)
-            if not np.all(np.isfinite(F)):
-                break
-            try:
-                dx0 = LU(J).solve(-F)
-            except SingularMatrix:
-                break
-            _, g = log_m_and_grad(x)
-            denom = 1.0 - float(g @ dx0)  # 1 + g . J^{-1} F with J^{-1} F = -dx0
-            if not math.isfinite(denom) or abs(denom) < 1e-14:
-                break
-            dx = dx0 / denom
-            if max_norm(dx0) <= tol * (1 + max_norm(x)):
-                ok = True
-                break
-            m0, lam = merit(x), 1.0
-            while lam >= 1.0 / 64 and not merit(x + lam * dx) < m0:
-                lam *= 0.5
-            if lam < 1.0 / 64:
-                break
-            x = x + lam * dx
-        if not ok:
+        x = _deflated_newton(system, p, x, log_m_and_grad, merit, tol, max_iter)
+        if x is None:
             continue
         r = system.disc.newton(x, p, tol=tol)
         if not r.converged:
@@ -221,6 +199,32 @@ def deflate(system: RodSystem, phi_L: float, known: Sequence[np.ndarray], guesse
         roots.append(r.x)
         found.append(r.x)
     return found
+
+
+def _deflated_newton(system, p, x, log_m_and_grad, merit, tol: float, max_iter: int):
+    """Damped deflated Newton from ``x`` (see :func:`deflate`): the point it converges to, or None."""
+    for _ in range(max_iter):
+        F, J, _ = system.disc.linearise(x, p)
+        if not np.all(np.isfinite(F)):
+            return None
+        try:
+            dx0 = LU(J).solve(-F)
+        except SingularMatrix:
+            return None
+        _, g = log_m_and_grad(x)
+        denom = 1.0 - float(g @ dx0)  # 1 + g . J^{-1} F with J^{-1} F = -dx0
+        if not math.isfinite(denom) or abs(denom) < 1e-14:
+            return None
+        dx = dx0 / denom
+        if max_norm(dx0) <= tol * (1 + max_norm(x)):
+            return x
+        m0, lam = merit(x), 1.0
+        while lam >= 1.0 / 64 and not merit(x + lam * dx) < m0:
+            lam *= 0.5
+        if lam < 1.0 / 64:
+            return None
+        x = x + lam * dx
+    return None
 
 
 # --------------------------------------------------------------------------
