@@ -79,7 +79,7 @@ def full_lu(J, b, c, d):
 
 def plain_loop(pb: FDBratu, lam0: float = 0.5, ds: float = 0.1, ds_max: float = 0.5, theta: float = 0.5):
     """Keller's pseudo-arclength continuation from the lower solution at ``lam0`` through the fold until ``lam``
-    is back below ``lam0``; returns the located fold's ``lam``."""
+    is back below ``lam0``; returns the located fold's ``lam`` and ``|dlam/ds|`` there."""
     n = pb.n
     wx, wp = theta / n, 1.0 - theta
     u = np.zeros(n)
@@ -125,6 +125,8 @@ def plain_loop(pb: FDBratu, lam0: float = 0.5, ds: float = 0.1, ds_max: float = 
         if fold is None and t[-1] > 0 >= t1[-1]:  # the fold, dlam/ds = 0: Illinois on the arclength
             a, b, ta, tb, ya, yb, side = 0.0, ds_step, t[-1], t1[-1], y, y1, 0
             for _ in range(40):
+                if abs(b - a) <= 1e-14 * abs(b):  # the bracket at rounding: |dlam/ds| cannot fall further
+                    break
                 s = b - tb * (b - a) / (tb - ta)
                 ys = correct(y, t, s, ya + (s - a) / (b - a) * (yb - ya))  # the chord of the bracket
                 ts = tangent(ys, t)[-1]
@@ -135,7 +137,7 @@ def plain_loop(pb: FDBratu, lam0: float = 0.5, ds: float = 0.1, ds_max: float = 
                 else:
                     ta, side = (ta / 2 if side == 1 else ta), 1
                 b, tb, yb = s, ts, ys
-            fold = float(ys[-1])
+            fold = (float(ys[-1]), abs(ts))
         y, t = y1, t1
         if fold is not None and y[-1] < lam0:
             return fold
@@ -145,16 +147,16 @@ def tracker_loop(pb: FDBratu, lam0: float = 0.5):
     from rodcont.continuation import ContinuationSettings, Tracker
     s = ContinuationSettings(ds=0.1, ds_max=0.5, p_min=lam0, p_max=4.0, max_steps=500)
     tr = Tracker(pb, np.zeros(pb.n), lam0, s)
-    folds = [q.p for q in tr if str(q.kind) == "fold"]
-    return folds[0] if folds else float("nan")
+    folds = [(q.p, abs(q.tp)) for q in tr if str(q.kind) == "fold"]
+    return folds[0] if folds else (float("nan"), float("nan"))
 
 
 def one(n: int, form: str, loop: str, solver: str) -> dict:
     pb = FDBratu(n, form == "scaled", BorderedSolver if solver == "block" else full_lu)
     t, c = time.perf_counter(), time.process_time()
-    fold = plain_loop(pb) if loop == "plain" else tracker_loop(pb)
+    fold, fold_tp = plain_loop(pb) if loop == "plain" else tracker_loop(pb)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
-    return {"n": n, "form": form, "loop": loop, "solver": solver, "wall": wall, "cpu": cpu, "fold": fold,
+    return {"n": n, "form": form, "loop": loop, "solver": solver, "wall": wall, "cpu": cpu, "fold": fold, "fold_tp": fold_tp,
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "fill": pb.worst_fill,
             "factorisations": pb.factorisations}
 
@@ -180,7 +182,7 @@ def report(r: dict) -> None:
     print(f"  n = {r['n']:6d} {r['form']:8s} {r['loop']:7s} {r['solver']:5s} {r['cpu']:7.2f} s CPU "
           f"({r['wall']:.2f} s wall)  "
           f"peak {r['peak_mb']:6.0f} MB  factors/matrix {r['fill']:6.2f}  "
-          f"{r['factorisations']:4d} factorisations  fold lam {r['fold']:.13f}")
+          f"{r['factorisations']:4d} factorisations  fold lam {r['fold']:.13f} (|dlam/ds| {r['fold_tp']:.0e})")
 
 
 def rod_fold_figures() -> None:
