@@ -399,9 +399,10 @@ class AdaptiveContinuation:
     def _follow(self, tracker: Tracker, problem, first: Point):
         """Iterate the tracker from ``first``; returns the next segment, or None (the tracker or the
         accuracy guard ended the run)."""
-        a, arc0 = self.adaptive, first.arclength
+        a = self.adaptive
+        # the tracker's arclength goes on from ``first``'s, which the segment's start was given (adding it
+        # again doubled it at every segment: 553 in one step on the Gamma = 1 trace)
         for pt in tracker:
-            pt.arclength += arc0
             err = self.accuracy(problem, pt)
             rejected = self._rejected(problem, pt, err)
             if rejected is _STOP:

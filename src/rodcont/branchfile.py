@@ -72,8 +72,11 @@ renamed over it (atomic on POSIX). A reader, a crash or a full disk therefore
 only ever sees the previous complete version or the new one. Each published
 file starts with a 512-byte user block (ignored by HDF5 readers: h5py,
 h5dump, MATLAB) holding a magic string and a BLAKE2 checksum of the rest, so
-a damaged file is rejected before HDF5 reads a byte of it. One writer per
-target: a lock file taken with ``flock`` refuses a second writer.
+a damaged file is rejected before HDF5 reads a byte of it; a file without it reads with
+``unverified = True`` (:class:`UnverifiedFileWarning`). One writer per target: a lock
+file taken with ``flock`` refuses a second writer. No output is one of the command's
+inputs under any name (:func:`check_writable`; :func:`rodcont.safeio.command_inputs`
+collects them).
 """
 
 from __future__ import annotations
@@ -118,6 +121,12 @@ HEADER = 512
 
 class BranchFileError(Exception):
     """A file that cannot be read or written as a branch file (message says why, in one line)."""
+
+
+class UnverifiedFileWarning(UserWarning):
+    """A branch file read without rodcont's checksum header: written by another program, or rewritten by
+    hand (h5py keeps no user block), so nothing vouches that its tables are what rodcont wrote (a deleted
+    fold table reads as no folds). The loaded branch says so: ``unverified = True``."""
 
 
 # --------------------------------------------------------------------------
@@ -503,17 +512,20 @@ class DiagramData:
     attrs: dict
     branches: list
     folds: Table
+    unverified: bool = False  # read without rodcont's checksum (UnverifiedFileWarning)
 
     def __len__(self) -> int:
         return len(self.branches)
 
 
-def _check_file(path: str) -> None:
-    """Refuse a file that is not there, not a file, or damaged, before HDF5 reads it.
+def _check_file(path: str) -> bool:
+    """Refuse a file that is not there, not a file, or damaged, before HDF5 reads it; True when its
+    checksum vouches for it.
 
     A file with rodcont's header must match its checksum. A file without one (written by
     another program, or edited in place) is first opened in a child process: HDF5 can
-    crash on a damaged file, and a crash there is a refusal here, not a crash of ours.
+    crash on a damaged file, and a crash there is a refusal here, not a crash of ours;
+    it is read, unverified (:class:`UnverifiedFileWarning`).
     """
     if not os.path.exists(path):
         raise BranchFileError(f"{path}: no such file")
@@ -529,7 +541,7 @@ def _check_file(path: str) -> None:
                 if len(image) != length or hashlib.blake2b(image, digest_size=32).digest() != digest:
                     raise BranchFileError(f"{path}: damaged branch file (checksum mismatch: the file was "
                                           f"changed or truncated after rodcont wrote it)")
-                return
+                return True
     except OSError as exc:
         raise BranchFileError(f"{path}: cannot read ({exc.strerror})") from None
     code = ("import sys, h5py\nf = h5py.File(sys.argv[1], 'r')\n"
@@ -543,6 +555,7 @@ def _check_file(path: str) -> None:
     if r.returncode != 0:
         kind = "crashes HDF5" if r.returncode < 0 else "not a readable HDF5 file"
         raise BranchFileError(f"{path}: {kind}")
+    return False
 
 
 def _plain(v):
@@ -702,7 +715,6 @@ def _read_special(where: str, root, n: int) -> dict | None:
 
 
 def _open(path: str):
-    _check_file(path)
     h5py = _h5py()
     try:
         return h5py.File(path, "r")
@@ -724,9 +736,33 @@ _READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDec
                 RuntimeError, OverflowError)
 
 
+def unverified_message(path: str) -> str:
+    return (f"{path} has no rodcont checksum (written by another program, or rewritten by hand): it is read "
+            f"as it is, unverified")
+
+
+def _marked(path: str, verified: bool, data):
+    """``data`` (a branch or a diagram) flagged ``unverified`` (each branch too) and, if so, warned."""
+    for obj in [data] + list(getattr(data, "branches", [])):
+        try:
+            obj.unverified = not verified
+        except AttributeError:
+            pass
+    if not verified:
+        import warnings
+        warnings.warn(unverified_message(path), UnverifiedFileWarning, stacklevel=3)
+    return data
+
+
 def load_branch(path: str, branch: str | int | None = None) -> Branch:
     """Read a branch file (or branch ``<j>`` of a diagram file) as a :class:`rodcont.branch.Branch`;
-    :class:`BranchFileError` with a one-line reason otherwise."""
+    :class:`BranchFileError` with a one-line reason otherwise. A file without rodcont's checksum reads
+    with ``unverified = True`` and an :class:`UnverifiedFileWarning`."""
+    verified = _check_file(path)
+    return _marked(path, verified, _load_branch(path, branch))
+
+
+def _load_branch(path: str, branch: str | int | None = None) -> Branch:
     f = _open(path)
     try:
         with f:
@@ -751,7 +787,13 @@ def load_branch(path: str, branch: str | int | None = None) -> Branch:
 
 
 def load_diagram(path: str) -> DiagramData:
-    """Read a diagram file (a trace file reads as a diagram of one branch, with its folds)."""
+    """Read a diagram file (a trace file reads as a diagram of one branch, with its folds); unverified as
+    :func:`load_branch` says."""
+    verified = _check_file(path)
+    return _marked(path, verified, _load_diagram(path))
+
+
+def _load_diagram(path: str) -> DiagramData:
     f = _open(path)
     try:
         with f:

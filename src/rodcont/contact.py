@@ -286,15 +286,11 @@ def load_conduit(path, L: float, reference: str | None = None):
     import json
     import os
     import tomllib
-    if os.path.exists(path) and not os.path.isfile(path):  # a device or a FIFO would never end (or start)
-        raise ConduitError(f"{path}: not a regular file: not a conduit file")
-    try:
-        with open(path, "rb") as fh:
-            if os.fstat(fh.fileno()).st_size > 1 << 20:
-                raise ConduitError(f"{path}: larger than 1 MB: not a conduit file")
-            doc = tomllib.load(fh)
-    except OSError as exc:
-        raise ConduitError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    from .safeio import InputFileError, read_input
+    try:  # opened without blocking, checked by fstat: a device, a FIFO or a huge file is refused unread
+        doc = tomllib.loads(read_input(path, "toml", what="conduit file").decode("utf-8"))
+    except InputFileError as exc:
+        raise ConduitError(str(exc)) from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConduitError(f"{path}: not a TOML file ({' '.join(str(exc).split())})") from None
     sec = doc.get("conduit")

@@ -386,6 +386,8 @@ class EventDetector(Detector):
     def check(self, tracker, base, new, ds):
         ev = self.event
         g0, g1 = ev.function(base), ev.function(new)
+        if tracker.entering.get(id(ev)) is base and g0 < 0 < g1:
+            return []  # the first step from a start on the event, heading in (check_start)
         if not g0 * g1 < 0:
             return []
         f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind)
@@ -425,6 +427,7 @@ class Tracker:
         self.events = list(events)
         self.stop: StopReason | None = None
         self.start_on_fold = False  # the start is a fold in p (found by start(); no fold is reported there)
+        self.entering: dict = {}  # id of a stopping event -> the start that lies on it, heading in (check_start)
         # (kind, p before, p after): a fold or branch point detected in a step whose location failed
         # (no point of the bracket converged); the step's end is kept as a regular point
         self.unlocated: list[tuple[str, float, float]] = []
@@ -785,10 +788,21 @@ class Tracker:
             return StopReason(Status.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
                                           f"{s.p_max if pt.tp > 0 else s.p_min:g} reached at the start")
         for ev in self.events:
-            if ev.action in (Action.STOP, Action.SEGMENT) and ev.function(pt) < 0:
+            if ev.action in (Action.STOP, Action.SEGMENT) and ev.function(pt) < 0 and not self._enters(ev, pt):
                 return StopReason(Status.AT_START if ev.action == Action.STOP else Status.SEGMENT,
                                   f"{ev.name} (already at the start)", ev.label)
         return None
+
+    def _enters(self, ev: Event, pt: Point) -> bool:
+        """Is ``pt`` on the event, heading in: inside (``g > 0``) one smallest step along its tangent? (The
+        last point of a run that a guard stopped, restarted back along the branch, is located to the guard's
+        tolerance, often a hair outside: it was refused, test_a_finished_branch_restarts_back_from_its_guard.)
+        The event then ignores its crossing back in during the first step."""
+        q, _ = self._correct(pt, self.settings.ds_min)
+        if q is None or not ev.function(q) > 0:
+            return False
+        self.entering[id(ev)] = pt
+        return True
 
     def resume(self, pt: Point) -> None:
         """Go on from ``pt`` (a point of this problem with its tangent, e.g. the start re-converged by
@@ -883,6 +897,8 @@ class Tracker:
             if ev.action != Action.STOP:
                 continue
             g0 = ev.function(base)
+            if self.entering.get(id(ev)) is base:  # a start on the event, heading in (check_start)
+                continue
             for j, f in enumerate(found):
                 if f.point is None or f.stop is not None or g0 * ev.function(f.point) >= 0:
                     continue

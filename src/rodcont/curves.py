@@ -35,6 +35,7 @@ derivatives up to the order the model needs.
 from __future__ import annotations
 
 import math
+import os
 from typing import Callable
 
 import numpy as np
@@ -787,12 +788,17 @@ class MinimumCurvatureWell(ReferenceCurve):
     def from_file(cls, path: str, **kw) -> "MinimumCurvatureWell":
         """Stations from a text file: three columns MD, inclination, azimuth (degrees), separated by
         blanks or commas; ``#`` starts a comment; a first line that is not numbers is a header."""
+        from .safeio import InputFileError, read_input
         rows = []
-        try:
-            with open(path) as fh:
-                lines = fh.read().splitlines()
-        except OSError as exc:
-            raise ValueError(f"cannot read the survey file {path!r}: {exc.strerror}") from None
+        try:  # a regular file of survey size only: a device, a FIFO or a huge file is refused before reading
+            text = read_input(path, "survey").decode("utf-8")
+        except InputFileError as exc:
+            if exc.strerror is not None:
+                raise ValueError(f"cannot read the survey file {path!r}: {exc.strerror}") from None
+            raise ValueError(f"the survey file {exc}") from None
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"the survey file {path}: not text (byte {exc.start} is not UTF-8)") from None
+        lines = text.splitlines()
         for i, line in enumerate(lines):
             line = line.split("#", 1)[0].replace(",", " ").strip()
             if not line:
@@ -806,7 +812,9 @@ class MinimumCurvatureWell(ReferenceCurve):
             if len(vals) != 3:
                 raise ValueError(f"{path}, line {i + 1}: expected MD, inclination, azimuth, got {len(vals)} values")
             rows.append(vals)
-        return cls(np.array(rows), **kw)
+        well = cls(np.array(rows), **kw)
+        well.source = os.path.abspath(path)  # an input of every command that uses it (rodcont.safeio)
+        return well
 
     @property
     def breakpoints(self) -> np.ndarray:

@@ -32,13 +32,17 @@ Units: those of the branch file (lengths in the unit of ``L``, forces in the
 unit of ``EA``, so ``w`` is force per length, ``EI`` force x length^2).
 
 Writers (:func:`write_csv`, :func:`write_vtp`, :func:`write_npz`,
-:func:`write_pvd`) publish atomically: the file appears whole or not at
-all. :func:`animate` draws the rod along a branch beside its response
+:func:`write_pvd`, and :func:`animate`) publish atomically (:mod:`rodcont.safeio`: a
+synced temporary file beside the target, renamed over it): the file appears whole or not
+at all, and an existing one stays whole when the disk fills. They replace an existing file
+(the command line refuses one unless ``--overwrite``); a series is replaced as a whole
+(:func:`export_branch`). :func:`animate` draws the rod along a branch beside its response
 diagram with matplotlib's object interface (no pyplot, backend untouched).
 """
 
 from __future__ import annotations
 
+import contextvars
 import json
 import os
 
@@ -245,27 +249,22 @@ def stack_fields(series: list[dict]) -> dict:
 # --------------------------------------------------------------------------
 # Writers
 # --------------------------------------------------------------------------
+_STAGE = contextvars.ContextVar("rodcont_export_stage", default=None)
+
+
 def _publish(path: str, payload) -> None:
-    """Write ``payload`` (bytes, or an iterable of str pieces) to a temporary file beside ``path``
-    and rename it over ``path``: the file appears whole or not at all."""
-    real = os.path.realpath(path)
-    tmp = os.path.join(os.path.dirname(real), f".{os.path.basename(real)}.{os.getpid()}.tmp")
+    """Write ``payload`` (bytes, or an iterable of str pieces) atomically (:func:`rodcont.safeio.publish`:
+    a synced temporary file beside ``path`` renamed over it): the file appears whole or not at all, and an
+    old one stays whole if the disk fills. Inside :func:`export_branch`'s series the file is only staged."""
+    from .safeio import OutputFileError, publish
+    stage = _STAGE.get()
     try:
-        with open(tmp, "wb") as fh:
-            if isinstance(payload, (bytes, bytearray)):
-                fh.write(payload)
-            else:
-                for piece in payload:
-                    fh.write(piece.encode())
-        os.replace(tmp, real)
-    except OSError as exc:
-        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if os.path.exists(tmp):  # failed or interrupted: leave nothing behind
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+        if stage is not None:
+            stage.add(path, payload)
+        else:
+            publish(path, payload)
+    except OutputFileError as exc:
+        raise ExportError(str(exc)) from None
 
 
 def _columns(fields: dict):
@@ -432,28 +431,75 @@ def series_dir(pvd_path: str) -> str:
     return stem + "_vtp"
 
 
-def export_branch(data, path: str, fmt: str, samples: int = 200, grid: str = "S", progress=None) -> int:
+def series_files(pvd_path: str, n: int) -> list[str]:
+    """The ``.vtp`` files of a series of ``n`` points written with ``pvd_path`` (in :func:`series_dir`)."""
+    d = series_dir(pvd_path)
+    stem = os.path.basename(os.path.splitext(pvd_path)[0])
+    return [os.path.join(d, f"{stem}_{i:06d}.vtp") for i in range(n)]
+
+
+def _stale_series(pvd_path: str, n: int) -> list[str]:
+    """Files of an earlier, longer series of the same name (``<stem>_<index>.vtp`` from index ``n`` on)."""
+    import re
+    d = series_dir(pvd_path)
+    stem = os.path.basename(os.path.splitext(pvd_path)[0])
+    pattern = re.compile(re.escape(stem) + r"_(\d{6})\.vtp$")
+    try:
+        names = os.listdir(d)
+    except OSError:
+        return []
+    return [os.path.join(d, m) for m in names if (g := pattern.match(m)) and int(g.group(1)) >= n]
+
+
+def export_branch(data, path: str, fmt: str, samples: int = 200, grid: str = "S", progress=None,
+                  overwrite: bool = True) -> int:
     """Every point of a branch: ``vtk`` writes a ``.pvd`` collection (timestep = point index) and one
     ``.vtp`` per point in :func:`series_dir`; ``npz`` writes the fields stacked along a leading
     point axis (``phi_L``, ``stretch``, ``torque``, ``index`` per point as extra arrays).
-    Returns the number of points. CSV is one table per point: refused here."""
+    Returns the number of points. CSV is one table per point: refused here.
+
+    A series is replaced as a whole: every file is written to a temporary file first and all are renamed
+    once all are written (a full disk leaves the old series as it was), the ``.pvd`` last; the files of an
+    earlier, longer series of the same name are then removed. ``overwrite=False``: an existing ``.pvd`` or
+    series file is refused (:class:`ExportError`) before anything is computed."""
     n = len(data)
     if n == 0:
         raise ExportError(f"{data.label} holds no point")
+    if fmt == "npz" and not overwrite and os.path.lexists(path):
+        raise ExportError(f"{path} exists: choose another -o or add --overwrite to replace it")
     if fmt == "vtk":
+        from .safeio import Staged
         d = series_dir(path)
         if os.path.lexists(d) and not os.path.isdir(d):
             raise ExportError(f"cannot write the series: {d} exists and is not a directory")
+        targets = series_files(path, n)
+        if not overwrite:
+            there = [p for p in [path] + targets if os.path.lexists(p)]
+            if there:
+                raise ExportError(f"{there[0]} exists{f' (and {len(there) - 1} more of the series)' if len(there) > 1 else ''}: "
+                                  f"choose another -o or add --overwrite to replace the series")
         os.makedirs(d, exist_ok=True)
-        stem = os.path.basename(os.path.splitext(path)[0])
         entries = []
-        for i in range(n):
-            name = f"{stem}_{i:06d}.vtp"
-            export_point(data, i, os.path.join(d, name), "vtk", samples, grid)
-            entries.append((i, f"{os.path.basename(d)}/{name}"))
-            if progress is not None:
-                progress(i + 1, n)
-        write_pvd(entries, path)
+        with Staged() as stage:
+            token = _STAGE.set(stage)
+            try:
+                for i, target in enumerate(targets):
+                    export_point(data, i, target, "vtk", samples, grid)
+                    entries.append((i, f"{os.path.basename(d)}/{os.path.basename(target)}"))
+                    if progress is not None:
+                        progress(i + 1, n)
+                write_pvd(entries, path)
+            finally:
+                _STAGE.reset(token)
+            try:
+                stage.commit()
+            except OSError as exc:
+                raise ExportError(str(exc)) from None
+        for stale in _stale_series(path, n):
+            try:
+                os.unlink(stale)
+            except OSError:
+                pass
         return n
     if fmt == "npz":
         series = []
@@ -560,9 +606,9 @@ def animate(data, path: str, fps: int = 10, samples: int = 120, max_frames: int 
     ax3.set_title("point 0: Φ = 0, stretch = 0", fontsize=10)
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
 
+    from .safeio import OutputFileError, commit, discard, reason, side_file, synced
     writer = (PillowWriter if ext == ".gif" else FFMpegWriter)(fps=fps)
-    real = os.path.realpath(path)
-    tmp = os.path.join(os.path.dirname(real), f".{os.path.basename(real)}.{os.getpid()}.tmp{ext}")
+    tmp = side_file(path, "tmp", ext)  # the writers choose the format by the suffix
     try:
         with writer.saving(fig, tmp, dpi):
             for j, i in enumerate(idx):
@@ -578,13 +624,12 @@ def animate(data, path: str, fps: int = 10, samples: int = 120, max_frames: int 
                 writer.grab_frame()
                 if progress is not None:
                     progress(j + 1, idx.size)
-        os.replace(tmp, real)
-    except OSError as exc:
-        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
+        synced(tmp)
+        commit(tmp, path)  # atomic: an existing animation stays whole if anything above failed
+    except OutputFileError as exc:
+        raise ExportError(str(exc)) from None
+    except OSError as exc:  # from the animation writer itself (PIL, ffmpeg) on the temporary file
+        raise ExportError(f"cannot write {path}: {reason(exc)}") from None
     finally:
-        if os.path.exists(tmp):
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+        discard(tmp)
     return int(idx.size)

@@ -13,6 +13,21 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 
+def save_figure(fig: Figure, path: str, dpi: int = 130) -> None:
+    """Write ``fig`` to ``path`` atomically (:func:`rodcont.safeio.publish`: rendered in memory, written to a
+    temporary file beside it, synced, renamed over it): a full disk or a kill leaves an existing image whole.
+    The format is the suffix's when matplotlib writes it, else PNG."""
+    import io
+    import os
+    from .safeio import publish
+    fmt = os.path.splitext(path)[1][1:].lower()
+    if fmt not in fig.canvas.get_supported_filetypes():
+        fmt = "png"
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format=fmt)
+    publish(path, buf.getbuffer())
+
+
 def _figure(w, h):
     fig = Figure(figsize=(w, h))
     FigureCanvasAgg(fig)
@@ -110,7 +125,7 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
               title=f"○ fold (waves)   × end{extra}", title_fontsize=7)
     ax.set_title(title or "Response diagram: twisted heavy clamped rod")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    save_figure(fig, path)
     return fig
 
 
@@ -150,5 +165,5 @@ def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "
     ax.legend(fontsize=8)
     ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    save_figure(fig, path)
     return fig

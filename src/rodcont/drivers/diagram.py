@@ -255,6 +255,8 @@ class Diagram:
     elapsed: float = 0.0
     status: Status = Status.RUNNING               # COMPLETE, or INTERRUPTED
     attrs: dict = field(default_factory=dict)     # the root attributes of its file
+    resumed: list = field(default_factory=list)   # complete branches of an interrupted run, not traced again
+    tracing: tuple | None = None                  # (j, branch) being traced: an interrupt marks it in the file
 
     @property
     def folds(self) -> Table:
@@ -271,13 +273,15 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
             T: float | None = None, out: str | None = None, overwrite: bool = False,
             deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
             progress: Callable[[str], None] | None = None, meta: dict | None = None, store_every: int = 1,
-            **options) -> Diagram:
+            resumed: Sequence[DiagramBranch] = (), **options) -> Diagram:
     """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``) in ``[phi_min, phi_max]``.
 
     ``options``: the fields of :class:`rodcont.drivers.trace.TraceOptions`,
     applied to every branch. ``deflate_at``: values of ``phi_L`` where
     deflated Newton looks for solutions the seeds missed. ``progress`` gets one
-    line per branch as it is done.
+    line per branch as it is done. ``resumed``: the complete branches of an interrupted run of this very
+    diagram, in their order (:func:`rodcont.restart.resume_diagram`): each is kept where the run reaches its
+    seed again, not traced. An interrupted run marks its file and the branch it was tracing ``interrupted``.
     """
     from .trace import _options
     opts = _options(options, "diagram()")
@@ -293,7 +297,7 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     crit = [c for c in beyond if c <= opts.phi_max]
     seeds = seed_twists(beyond, opts.phi_min, opts.phi_max)
     bopts = TraceOptions(**dict(opts.as_dict(), forced=tuple(sorted(set(opts.forced) | set(seeds) | set(deflate_at)))))
-    dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit)
+    dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit, resumed=list(resumed))
     dg.attrs = file_meta(rod, T, N, k, "phi_L", opts, RodSystem(rod, T=T, N=N, k=k),
                          dict(kind="diagram", critical_twists=np.asarray(crit), seeds=np.asarray(seeds),
                               deflate_at=np.asarray(deflate_at), **(meta or {})))
@@ -301,7 +305,9 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     if out is not None:
         from ..branchfile import BranchWriter, check_output
         check_output(out, overwrite=overwrite)
-        writer = BranchWriter(out, dg.attrs, store_every=store_every)
+        # a resumed file is replaced only once it holds its complete branches again
+        writer = BranchWriter(out, dg.attrs, store_every=store_every,
+                              min_points=sum(len(db.branch) for db in dg.resumed) or 1)
         _mesh_group(writer, RodSystem(rod, T=T, N=N, k=k))
     note = progress or (lambda msg: None)
     try:
@@ -315,9 +321,48 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         if dg.status != Status.COMPLETE:
             dg.status = Status.INTERRUPTED
         if writer is not None:
+            if dg.status == Status.INTERRUPTED:
+                _mark_interrupted(writer, dg)
             _write_folds(writer, dg)
-            writer.close(f"{len(dg.branches)} branches", dg.status)
+            writer.close(f"{len(dg.branches)} branches" if dg.status == Status.COMPLETE else
+                         f"interrupted ({len(dg.branches)} branches complete)", dg.status)
     return dg
+
+
+def _mark_interrupted(writer, dg: Diagram) -> None:
+    """The branch an interrupt stopped: marked ``interrupted`` in its group (``folds`` and the resume read
+    it), or dropped when it holds no point yet."""
+    if dg.tracing is None:
+        return
+    j, branch = dg.tracing
+    where = f"branches/{j}"
+    group = writer.groups.get(where)
+    if group is None:
+        return
+    group.drain()
+    if group.n == 0:
+        del writer.f[where]
+        writer.groups.pop(where)
+        return
+    branch.status, branch.message = Status.INTERRUPTED, "interrupted"
+    _branch_attrs(writer, j, branch)
+
+
+def _resumed_branch(dg: Diagram, origin: str, writer) -> DiagramBranch | None:
+    """The next complete branch of the run being resumed, if it is the one from ``origin``: copied into the
+    file as branch ``len(dg.branches)``."""
+    if not dg.resumed or dg.resumed[0].origin != origin:
+        return None
+    db = dg.resumed.pop(0)
+    if writer is not None:
+        j, b = len(dg.branches), db.branch
+        group = writer.group(f"branches/{j}", attrs=dict(origin=origin))
+        rec = Recorder(Branch(dg.gamma, dg.rod, b.N, b.k, attrs=b.attrs), writer, group)
+        for i in range(len(b)):
+            rec.copy(b, i)
+        _branch_attrs(writer, j, b)
+        rec.sync()
+    return db
 
 
 def _rod_and_tension(gamma, rod, T):
@@ -418,8 +463,12 @@ def _line(j: int, db: DiagramBranch) -> str:
 def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: str, writer, dg: Diagram,
                 callback, both: bool = True) -> DiagramBranch:
     """Trace from a seed down, then up; the branch runs from its lower end through the seed."""
+    done = _resumed_branch(dg, origin, writer)
+    if done is not None:
+        return done
     j = len(dg.branches)
     branch = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
+    dg.tracing = (j, branch)
     group = writer.group(f"branches/{j}", attrs=dict(origin=origin)) if writer is not None else None
     rec = Recorder(branch, writer, group)
     if both:
@@ -441,6 +490,7 @@ def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: 
         _branch_attrs(writer, j, branch)
         rec.sync()
         writer.flush()
+    dg.tracing = None  # complete: an interrupt from here on leaves it as it is
     return DiagramBranch(branch, origin, (branch.message_first, branch.message))
 
 

@@ -175,7 +175,8 @@ def _open(out, data, meta, result, start: _FoldStart, overwrite):
         return None, _FoldRecorder(result)
     from ..branchfile import BranchWriter, check_output
     from .trace import _mesh_group
-    check_output(out, inputs=[getattr(data, "path", None)], overwrite=overwrite)
+    from ..safeio import command_inputs
+    check_output(out, inputs=command_inputs(loaded=[data]), overwrite=overwrite)  # nor the survey it names
     writer = BranchWriter(out, meta, min_points=2)
     group = writer.group("/", extra_columns=(start.param,))
     _mesh_group(writer, start.one)

@@ -85,10 +85,14 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     """
     gammas, rod, jobs = _checked(gammas, rod, jobs, options)
     from ..branchfile import check_output
+    from ..safeio import command_inputs
     os.makedirs(out_dir, exist_ok=True)
     paths = [branch_path(out_dir, g, diagram) for g in gammas]
-    for p in paths:
-        check_output(p, overwrite=overwrite)
+    inputs = command_inputs(reference=options.get("curve") if isinstance(options.get("curve"), str) else None,
+                            curves=[options["curve"]] if not isinstance(options.get("curve"), (str, type(None)))
+                            else ())
+    for p in paths + ([os.path.join(out_dir, "response_diagram.png")] if plot else []):
+        check_output(p, inputs, overwrite=overwrite)  # never onto the survey the traces read
     own = executor is None
     jobs = jobs or os.cpu_count() or 1
     queue = manager = None

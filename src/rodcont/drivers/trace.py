@@ -564,7 +564,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
           start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
           breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
           store_every: int = 1, curve=None, wall=None, callback: Callable[[Point], None] | None = None,
-          settings: ContinuationSettings | None = None, **options) -> Branch:
+          settings: ContinuationSettings | None = None, resume: Branch | None = None, **options) -> Branch:
     """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
 
     In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
@@ -580,6 +580,8 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     and the last one, in the file and in the returned branch (smaller files, and the memory of a long
     trace; the table keeps every point, ``coefficients[i]`` is empty where the solution was not kept).
     ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
+    ``resume``: the branch (read from ``out``) this trace continues from its last point: its points come
+    first, the start takes the last one's place (:func:`rodcont.restart.resume`).
     The branch's ``status`` says why it ended (:class:`rodcont.result.Status`), ``stop_reason`` in words.
     """
     opts = _options(options, "trace()")
@@ -600,6 +602,9 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
                     wall=wall)
     writer, recorder = _open_output(out, overwrite, attrs, store_every, branch, st.system)
     try:
+        if resume is not None:  # inside: the writer is closed (its lock released) whatever happens
+            from ..restart import continuing
+            recorder = continuing(recorder, resume)
         with np.errstate(all="ignore"):
             run(st.system, st.x0, st.p0, opts, tangent0=st.tangent0, exact=st.exact, branch=branch,
                 recorder=recorder, callback=callback, settings=settings)
@@ -614,7 +619,8 @@ def _open_output(out, overwrite, attrs, store_every, branch, system):
     writer = group = contact = None
     if out is not None:
         from ..branchfile import BranchWriter, check_output
-        check_output(out, overwrite=overwrite)
+        from ..safeio import curve_files
+        check_output(out, curve_files(system.curve), overwrite=overwrite)  # never onto the survey it reads
         writer = BranchWriter(out, attrs, store_every=store_every)
         group = writer.group("/", extra_columns=((branch.param,) if branch.param != "phi_L" else ())
                              + (CONTACT_COLUMNS if system.wall is not None else ()))
