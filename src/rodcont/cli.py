@@ -56,15 +56,13 @@ def _load_config(ctx, param, value):
     if value is None:
         return None
     import tomllib
-    if not os.path.isfile(value):
-        raise click.BadParameter(f"{value} is not a file", param_hint="--config")
-    if os.path.getsize(value) > 1_000_000:
-        raise click.BadParameter(f"{value} is larger than a problem file (1 MB)", param_hint="--config")
+    from .safeio import InputFileError, read_input
+    try:  # a regular file of a problem file's size: never a device, a FIFO or a huge file
+        text = read_input(value, "toml", what="problem file")
+    except InputFileError as exc:
+        raise click.BadParameter(str(exc), param_hint="--config") from None
     try:
-        with open(value, "rb") as fh:
-            doc = tomllib.load(fh)
-    except OSError as exc:
-        raise click.BadParameter(f"cannot read {value}: {exc.strerror}", param_hint="--config") from None
+        doc = tomllib.loads(text.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
         raise click.BadParameter(f"{value} is not valid TOML ({' '.join(str(exc).split())[:120]})",
                                  param_hint="--config") from None
@@ -186,7 +184,7 @@ def rod_options(f):
 
 
 _CONFIG_SKIP = {"config", "quiet", "out", "out_dir", "overwrite", "start", "output", "points", "files", "file",
-                "spec", "debug", "max_defect"}
+                "spec", "debug", "max_defect", "resume_file", "extend"}
 
 
 def config_toml(params: dict) -> str:
@@ -221,19 +219,26 @@ def _echo_config(ctx) -> None:
     params["T"] = ctx.meta.get("rodcont.T")
     params["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
     params["reference"] = ctx.meta.get("rodcont.reference", "straight")
-    start = params.get("start")
+    start = params.get("start") or params.get("resume_file")
     if start is not None:
         # a restart's rod, loads, reference curve, conduit and mesh are the start file's, not the defaults;
-        # only an explicit --N is its own (a --k other than the file's is refused, so it is not echoed)
+        # only an explicit --N is its own (a --k other than the file's is refused, so it is not echoed); so
+        # are the trace options not given (rodcont.restart.carried_options)
         for name in CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + ("N", "k"):
             if name != "phi" and name not in _explicit("N"):
                 params.pop(name, None)
+        for sources in _OPTION_SOURCES.values():
+            for name in sources:
+                if not _explicit(name):
+                    params.pop(name, None)
     text = config_toml(params)
     ctx.meta["rodcont.config"] = text
     src = ctx.meta.get("rodcont.config_file")
     click.echo(f"# rodcont {ctx.info_name}" + (f" (--config {src})" if src else "") + ": the problem as run")
     if start is not None:
-        click.echo(f"#   (the rod, its loads, reference curve, conduit and mesh are those of --start {start})")
+        how = "--start" if params.get("start") else "--resume"
+        click.echo(f"#   (the rod, its loads, reference curve, conduit, mesh and the trace options not given "
+                   f"are those of {how} {start})")
     for line in text.splitlines():
         click.echo(f"#   {line}")
 
@@ -392,20 +397,46 @@ def _meta():
     return {"config": click.get_current_context().meta.get("rodcont.config", "")}
 
 
-def _load(path, branch=None):
-    from .branchfile import BranchFileError, load_branch
+# warnings printed once the command has ended (on an error its one line stands alone)
+_PENDING: list = []
+
+
+def _warn_later(message: str) -> None:
+    if message not in _PENDING:
+        _PENDING.append(message)
+
+
+def _flush_pending() -> None:
+    while _PENDING:
+        _err(f"rodcont: warning: {_PENDING.pop(0)}")
+
+
+def _read(loader, *args):
+    """A branch or diagram file read by ``loader``; a file without rodcont's checksum is read and said so."""
+    import warnings
+    from .branchfile import BranchFileError, UnverifiedFileWarning
     try:
-        return load_branch(path, branch)
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always", UnverifiedFileWarning)
+            data = loader(*args)
     except BranchFileError as exc:
         raise UserError(str(exc)) from None
+    for w in said:
+        if issubclass(w.category, UnverifiedFileWarning):
+            _warn_later(str(w.message))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return data
+
+
+def _load(path, branch=None):
+    from .branchfile import load_branch
+    return _read(load_branch, path, branch)
 
 
 def _load_any(path):
-    from .branchfile import BranchFileError, load_diagram
-    try:
-        return load_diagram(path)
-    except BranchFileError as exc:
-        raise UserError(str(exc)) from None
+    from .branchfile import load_diagram
+    return _read(load_diagram, path)
 
 
 def _point_spec(spec, what="--start"):
@@ -427,22 +458,29 @@ def _explicit(*names):
     return [n for n in names if ctx.get_parameter_source(n) not in (click.core.ParameterSource.DEFAULT, None)]
 
 
-def _check_out(out, inputs=(), overwrite=False, what="--out"):
+def _inputs(loaded=(), files=()) -> list:
+    """Every file this command reads (:func:`rodcont.safeio.command_inputs`): its --config file, the survey of
+    --reference well:FILE, its --conduit file and that file's survey, the branch files ``files`` and the
+    ``loaded`` branches or diagrams (with the surveys of their reference curves)."""
+    from .safeio import command_inputs
+    ctx = click.get_current_context()
+    return command_inputs(config=ctx.meta.get("rodcont.config_file"), reference=ctx.meta.get("rodcont.reference"),
+                          conduit=ctx.params.get("conduit"), branch_files=files, loaded=loaded)
+
+
+def _check_out(out, inputs=(), overwrite=False, what="--out", loaded=()):
+    """An output that is none of the command's inputs (any name), kept if it exists unless ``overwrite``."""
     from .branchfile import BranchFileError, check_output
-    config = click.get_current_context().meta.get("rodcont.config_file")
     try:
-        return check_output(out, list(inputs) + ([config] if config else []), overwrite, what)
+        return check_output(out, list(inputs) + _inputs(loaded), overwrite, what)
     except BranchFileError as exc:
         raise UserError(str(exc)) from None
 
 
-def _image_out(path, inputs=()):
-    """A PNG/GIF/MP4 output path: a writable name that is not an input (the suffix is checked by each command)."""
-    from .branchfile import BranchFileError, check_writable
-    try:
-        return check_writable(path, inputs, "-o")
-    except BranchFileError as exc:
-        raise UserError(str(exc)) from None
+def _image_out(path, inputs=(), overwrite=False, loaded=()):
+    """A PNG/GIF/MP4 output path: a writable name that is not an input, an existing file only with
+    --overwrite (the suffix is checked by each command)."""
+    return _check_out(path, inputs, overwrite, "-o", loaded)
 
 
 # --------------------------------------------------------------------------
@@ -611,7 +649,11 @@ def _print_equilibrium(eq, conduit: bool) -> None:
               help="tension ratio T / (w L) (required unless --start)")
 @trace_options
 @click.option("--start", default=None, help="restart from FILE.h5:POINT (or FILE.h5:BRANCH:POINT of a diagram); "
-                                            "POINT: index from 0, F<j> or BP<j> from 1")
+                                            "POINT: index from 0, F<j> or BP<j> from 1; the file's options "
+                                            "unless given")
+@click.option("--resume", "resume_file", default=None, type=click.Path(dir_okay=False),
+              help="continue the unfinished (interrupted) trace in FILE.h5 into FILE.h5 itself, with its options")
+@click.option("--extend", is_flag=True, help="with --resume: go on past the end of a finished branch")
 @click.option("--switch", is_flag=True, help="with --start at a branch point: follow the other branch")
 @click.option("--from-straight", type=float, default=None, callback=_number("--from-straight"),
               help="start near the straight twisted state at this Phi (weight homotopy)")
@@ -624,132 +666,76 @@ def _print_equilibrium(eq, conduit: bool) -> None:
 @click.option("--conduit", type=click.Path(dir_okay=False), default=None,
               help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
                    "the rod stays inside it, touching its wall where it must")
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
+@click.option("--out", default=None, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error, max_defect,
-          fold_error, forced, uniform, N_max, store_every, start, switch, from_straight, param, prange, direction,
-          conduit, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
+          fold_error, forced, uniform, N_max, store_every, start, resume_file, extend, switch, from_straight, param,
+          prange, direction, conduit, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
     bracketed; the mesh adapts to the shape unless --uniform. With --start the
-    rod, the tension and the mesh come from the file.
+    rod, the tension, the mesh and the trace options come from the file (options
+    given override them); --resume FILE.h5 continues an interrupted trace in place.
     """
-    import numpy as np
     from .drivers.trace import trace as run_trace
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
                        max_defect, fold_error, forced, uniform, N_max, store_every)
     kw["direction"] = 1 if direction == "up" else -1
-    if param != "phi_L":
-        if prange is None:
-            raise UserError(f"--param {param} needs --range A B")
+    if resume_file is not None:
+        return _resume_trace(resume_file, extend, out, start, from_straight, switch, param, prange, conduit, k,
+                             kw, quiet)
+    if extend:
+        raise UserError("--extend goes with --resume FILE.h5")
+    if out is None:
+        raise UserError("--out FILE.h5 is required (or --resume FILE.h5)")
+    if param != "phi_L" and prange is not None:
         kw["p_range"] = tuple(prange)
     elif prange is not None:
         raise UserError("--range is for --param other than phi_L (use --phi-min/--phi-max)")
-    extra = dict(param=param)
-    T = None
     if start is not None:
         if from_straight is not None:
             raise UserError("give --start or --from-straight, not both")
         data, pt, label = _point_spec(start)
-        if data.param != "phi_L" and data.attrs.get("kind") == "fold_curve":
-            raise UserError(f"{data.path} is a fold curve in {data.param}, not a branch: it cannot start a trace")
-        changed = _explicit("gamma", "w", "EI", "GJ", "EA", "L", "weight_direction") + (
-            ["T"] if click.get_current_context().meta.get("rodcont.T") is not None else [])
-        # a value that equals the stored point's own is no change (a script that always passes --gamma)
-        prod, ten = (_rod_at_point(data, pt), _tension_at_point(data, pt)) if data.param != "phi_L" \
-            else (data.rod, data.tension)
-        ctx = click.get_current_context()
-        given = dict(gamma=gamma, w=w, EI=EI, GJ=GJ, EA=EA, L=L, T=ctx.meta.get("rodcont.T"),
-                     weight_direction=ctx.meta.get("rodcont.weight_direction"))
-        stored = dict(w=prod.w, EI=prod.EI, GJ=prod.GJ, EA=prod.EA, L=prod.L, T=ten,
-                      gamma=ten / (prod.w * prod.L) if prod.w > 0 else None,
-                      weight_direction=tuple(prod.weight_direction))
-
-        def same(name):
-            a, b = given[name], stored[name]
-            if a is None or b is None:
-                return False
-            return bool(np.allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-12, atol=0.0))
-
-        changed = [n for n in changed if not same(n)]
-        if changed:
-            names = ", ".join("--" + n.replace("_", "-") for n in changed)
-            traceable = [n for n in ("gamma", "T", "w", "EI", "GJ", "EA") if n in changed]
-            raise UserError(f"{names} {'differs' if len(changed) == 1 else 'differ'} from the start file's; a restart "
-                            f"keeps its rod and tension: "
-                            + (f"to change it, trace in that parameter from the point (--start {start} --param "
-                               f"{traceable[0]} --range A B)" if traceable else
-                               "the span and the weight's direction are fixed along a branch (trace anew)"))
-        if _explicit("k") and k != int(data.attrs["k"]):
-            raise UserError(f"--k {k} differs from the start file's k = {int(data.attrs['k'])}: a restart keeps "
-                            f"its spline degree (--N chooses another mesh)")
-        if switch and pt["kind"] != "branch_point":
-            raise UserError(f"--switch needs a branch point (BP<j>); point {label} is a {pt['kind']} point")
-        _check_out(out, [data.path], overwrite)
-        if _explicit("reference"):
-            raise UserError("a restart keeps the start file's reference curve: drop --reference")
-        if conduit is not None:
-            raise UserError("a restart keeps the start file's conduit: drop --conduit")
-        rod, T = data.rod, data.tension
-        if data.param != "phi_L":
-            # a branch traced in a rod parameter or the tension: the point's own values, not the file's
-            # starting ones (a restart in T from a point of a trace in w started elsewhere on the branch)
-            rod, T = _rod_at_point(data, pt), _tension_at_point(data, pt)
-        extra["curve"] = data.curve
-        extra["wall"] = data.wall
-        k = int(data.attrs["k"])
-        b = pt["breakpoints"]
-        x0 = pt["x"]
-        value = float(pt[data.param]) if data.param != "phi_L" else float(pt["phi_L"])
-        if param == "phi_L" and data.param != "phi_L":
-            extra["param"] = "phi_L"
-            value = float(pt["phi_L"])
-        if param != "phi_L":
-            value = _param_value(param, rod, T)
-            extra["phi_L"] = float(pt["phi_L"])
-        if pt["kind"] == "fold" and param != data.param:
-            click.echo(f"rodcont: note: point {label} is a fold of the stored branch, where the Jacobian is singular: "
-                       f"it is a fold in {param} too, which moves the same way on both sides of it; --direction up "
-                       f"and down follow the two sides", err=True)
-        direction0 = pt["direction"] if param == data.param else None
-        if direction0 is not None and direction == "down":
-            direction0 = (-np.asarray(direction0[0]), -direction0[1])
-        if "N" in _explicit("N") and N != b.size - 1:
-            from .system import RodSystem
-            src = RodSystem(rod, T=T, N=b.size - 1, k=k, breakpoints=b, curve=data.curve, wall=data.wall)
-            dst = RodSystem(rod, T=T, N=N, k=k, curve=data.curve, wall=data.wall)
-            x0 = dst.disc.transfer(x0, src.disc)
-            if direction0 is not None:
-                direction0 = (dst.disc.transfer(np.asarray(direction0[0]), src.disc), direction0[1])
-            b = dst.disc.breakpoints
-        else:
-            N = b.size - 1
-        extra.update(start=(x0, value, direction0), breakpoints=b, switch=switch)
-    else:
-        if switch:
-            raise UserError("--switch needs --start FILE.h5:BP<j>")
-        rod = _rod(w, EI, GJ, EA, L)
-        if gamma is None and click.get_current_context().meta.get("rodcont.T") is None:
-            raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
-        gamma, T = _tension(gamma, rod)
-        gamma = None
-        if conduit is not None:
-            if from_straight is not None:
-                raise UserError("--from-straight is not available inside a conduit (trace from the sag)")
-            extra["curve"], extra["wall"] = _conduit(conduit, rod)
-        else:
-            extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
+        if param != "phi_L" and prange is None and param != data.param:
+            raise UserError(f"--param {param} needs --range A B")
+        args = _restart_args(data, label, start, param, switch, N, k, conduit, kw)
+        _check_out(out, args.inputs, overwrite, loaded=(data,))
+        for note in args.notes:
+            click.echo(f"rodcont: note: {note}", err=True)
+        rod, N, T, k = args.pop("rod"), args.pop("N"), args.pop("T"), args.pop("k")
+        args.pop("gamma", None)
+        if param in ("T", "gamma") and prange is not None:
+            _stretch_warning(rod, max([v if param == "T" else v * rod.w * rod.L for v in prange], key=abs))
+        _run_trace(run_trace, None, rod, N, k, T, {}, dict(args, meta=_meta()), out, overwrite, quiet,
+                   restart=True)
+        return
+    if param != "phi_L" and prange is None:
+        raise UserError(f"--param {param} needs --range A B")
+    extra = dict(param=param)
+    if switch:
+        raise UserError("--switch needs --start FILE.h5:BP<j>")
+    rod = _rod(w, EI, GJ, EA, L)
+    if gamma is None and click.get_current_context().meta.get("rodcont.T") is None:
+        raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
+    gamma, T = _tension(gamma, rod)
+    gamma = None
+    if conduit is not None:
         if from_straight is not None:
-            extra["from_straight"] = from_straight
-            if param != "phi_L":
-                extra["phi_L"] = from_straight
-        elif param != "phi_L":
-            raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
-        _check_out(out, [conduit] if conduit is not None else [], overwrite)
-        _stretch_warning(rod, T)
+            raise UserError("--from-straight is not available inside a conduit (trace from the sag)")
+        extra["curve"], extra["wall"] = _conduit(conduit, rod)
+    else:
+        extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
+    if from_straight is not None:
+        extra["from_straight"] = from_straight
+        if param != "phi_L":
+            extra["phi_L"] = from_straight
+    elif param != "phi_L":
+        raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
+    _check_out(out, [], overwrite)  # nor the --conduit file, its survey, --config, --reference well:FILE
+    _stretch_warning(rod, T)
     extra["meta"] = _meta()
     if param in ("T", "gamma") and prange is not None:
         # a trace in the tension reaches the ends of its range: warn for the farther one
@@ -758,55 +744,128 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
     _run_trace(run_trace, gamma if T is None else None, rod, N, k, T, kw, extra, out, overwrite, quiet)
 
 
-def _param_value(param, rod, T):
-    return {"T": T, "gamma": rod.gamma(T), "w": rod.w, "EI": rod.EI, "GJ": rod.GJ, "EA": rod.EA}[param]
+def _restart_args(data, label, spec, param, switch, N, k, conduit, kw):
+    """The arguments of a trace from a stored point (:func:`rodcont.restart.restart_from`: its checks, the
+    file's options unless given on the command line)."""
+    from .restart import restart_from
+    ctx = click.get_current_context()
+    try:
+        return restart_from(data, label, param=param, direction=kw["direction"], switch=switch,
+                            N=N if _explicit("N") else None, k=k if _explicit("k") else None,
+                            changes=_rod_changes(), reference=ctx.meta.get("rodcont.reference")
+                            if _explicit("reference") else None, conduit=conduit,
+                            options=_given_options(kw), spec=spec)
+    except (ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
 
 
-def _rod_at_point(data, pt):
-    from .rod import RodParameters
-    a = dict(EI=data.rod.EI, GJ=data.rod.GJ, EA=data.rod.EA, w=data.rod.w, L=data.rod.L,
-             weight_direction=data.rod.weight_direction)
-    if data.param in ("EI", "GJ", "EA", "w"):
-        a[data.param] = float(pt[data.param])
-    return RodParameters(**a)
+def _rod_changes() -> dict:
+    """The rod and tension values given on the command line (a restart refuses those that differ)."""
+    ctx = click.get_current_context()
+    given = {n: ctx.params[n] for n in _explicit("gamma", "w", "EI", "GJ", "EA", "L") if n in ctx.params}
+    if ctx.meta.get("rodcont.T") is not None:
+        given["T"] = ctx.meta["rodcont.T"]
+    if _explicit("weight_direction"):
+        given["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
+    return given
 
 
-def _tension_at_point(data, pt):
-    if data.param == "T":
-        return float(pt["T"])
-    if data.param == "gamma":
-        return float(pt["gamma"]) * data.rod.w * data.rod.L
-    return data.tension
+# trace options (TraceOptions fields) and the command-line options that set them
+_OPTION_SOURCES = {"phi_max": ("phi_max",), "phi_min": ("phi_min",), "stretch_max": ("stretch_max",),
+                   "max_steps": ("max_steps",), "ds": ("ds",), "ds_max": ("ds_max",), "ds_min": ("ds_min",),
+                   "min_alignment": ("min_alignment",), "max_error": ("max_error", "max_defect"),
+                   "fold_error": ("fold_error",), "forced": ("forced",), "adapt": ("uniform",),
+                   "N_max": ("N_max",), "p_range": ("prange",), "store_every": ("store_every",)}
 
 
-def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet):
+def _given_options(kw) -> dict:
+    """The trace options given on the command line or in --config (the rest a restart takes from its file)."""
+    return {name: kw[name] for name, sources in _OPTION_SOURCES.items() if name in kw and _explicit(*sources)}
+
+
+def _resume_trace(path, extend, out, start, from_straight, switch, param, prange, conduit, k, kw, quiet):
+    """``trace --resume FILE.h5``: the unfinished trace continued into the same file (rodcont.restart.resume)."""
+    from .branchfile import same_file
+    from .restart import resume
+    if out is not None and not same_file(out, path):
+        raise UserError(f"--resume continues {path} in place: drop --out {out} (or resume a copy)")
+    for given, what in ((start, "--start"), (from_straight, "--from-straight"), (switch or None, "--switch"),
+                        (conduit, "--conduit")):
+        if given is not None:
+            raise UserError(f"--resume goes on from the file's last point: drop {what}")
+    if _explicit("reference"):
+        raise UserError("--resume keeps the file's reference curve: drop --reference")
+    if _explicit("N"):
+        raise UserError("--resume goes on on the file's own mesh (it adapts): drop --N")
+    d = _load_any(path)
+    kind = d.attrs.get("kind", "branch")
+    if kind == "diagram":
+        raise UserError(f"{path} is a diagram: finish it with rodcont diagram --resume {path}")
+    if kind != "branch":
+        raise UserError(f"{path} is a {str(kind).replace('_', ' ')} file, not a trace: it cannot be resumed")
+    data = d.branches[0]
+    if _explicit("param") and param != data.param:
+        raise UserError(f"--resume goes on in the file's parameter ({data.param}): drop --param {param}")
+    if kw["direction"] != 1:
+        raise UserError("--resume goes on the way the trace went: drop --direction down")
+    if prange is not None:
+        kw["p_range"] = tuple(prange)
+    options = _given_options(kw)
+    if _explicit("k") and k != int(data.attrs["k"]):
+        raise UserError(f"--k {k} differs from the file's k = {int(data.attrs['k'])}: a resumed trace keeps it")
+
+    def check(args):  # the file itself is the output: refused only onto another input (its survey, --config)
+        _check_out(path, [p for p in args.inputs if not same_file(p, path)], True)
+
+    def run(callback):
+        return resume(path, extend=extend, changes=_rod_changes(), options=options, callback=callback, check=check,
+                      data=d)
+
+    _traced(run, path, quiet, resumed=True)
+
+
+def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet, restart=False):
+    def run(callback):
+        return run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=callback, **extra, **kw)
+
+    _traced(run, out, quiet, restart=restart)
+
+
+def _traced(run, out, quiet, restart=False, resumed=False):
+    """Run a trace into ``out`` with progress and Ctrl-C between points; print its summary."""
+    from .restart import start_hint
+    before = _identity(out)
     with _Interrupts() as intr:
         progress = _Progress(quiet, intr)
         t0 = time.perf_counter()
         interrupted = False
         try:
-            run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=progress, **extra, **kw)
+            run(progress)
         except KeyboardInterrupt:
             interrupted = True
         except (ValueError, TypeError) as exc:
-            raise UserError(str(exc)) from None
+            raise UserError(str(exc) + (start_hint(str(exc)) if restart else "")) from None
         finally:
             progress.done()
     elapsed = time.perf_counter() - t0
-    if not os.path.exists(out):
-        raise UserError("no branch traced: interrupted before the first point" if interrupted else
-                        "no branch traced")
+    if _identity(out) == before:  # nothing published: the target (if any) is as it was
+        what = "interrupted before the first point" if interrupted else "no point"
+        raise UserError(f"no branch traced: {what}" + (f" ({out} is as it was)" if before is not None else ""))
     data = _load(out)
     _summary(data, elapsed)
     if interrupted:
-        # a branch in a parameter goes on in that parameter over its range (the default restart is in Phi)
-        more = ""
-        if data.param != "phi_L" and "p_range" in kw:
-            lo, hi = kw["p_range"]
-            more = f" --param {data.param} --range {lo:g} {hi:g}"
-        click.echo(f"interrupted: {out} holds the {len(data)} completed point(s); "
-                   f"restart with --start {out}:-1{more}", err=True)
+        click.echo(f"interrupted: {out} holds the {len(data)} completed point(s); go on with "
+                   f"rodcont trace --resume {out}", err=True)
         sys.exit(intr.exit_code)
+
+
+def _identity(path):
+    """What tells one published version of ``path`` from another (a publication renames a new file over it)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_dev, st.st_mtime_ns, st.st_size
 
 
 def _summary(data, elapsed):
@@ -889,13 +948,15 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @trace_options
 @click.option("--deflate", "deflate_at", type=float, multiple=True, callback=_number("--deflate"),
               help="a Phi where deflated Newton looks for solutions the seeds missed (repeatable)")
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
+@click.option("--out", default=None, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
+@click.option("--resume", "resume_file", default=None, type=click.Path(dir_okay=False),
+              help="finish the interrupted diagram in FILE.h5 (its complete branches kept), into FILE.h5 itself")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-            max_defect, fold_error, forced, uniform, N_max, store_every, deflate_at, out, overwrite, quiet, N, k, w, EI,
-            GJ, EA, L):
+            max_defect, fold_error, forced, uniform, N_max, store_every, deflate_at, out, resume_file, overwrite, quiet,
+            N, k, w, EI, GJ, EA, L):
     """The whole response diagram at Gamma: every branch in [phi-min, phi-max], every fold.
 
     The primary branch from Phi = 0, one seed per interval between
@@ -908,25 +969,32 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
                        max_defect, fold_error, forced, uniform, N_max, store_every)
     rod = _rod(w, EI, GJ, EA, L)
     _curve(rod, "diagram")
-    gamma, T = _tension(gamma, rod)
-    _check_out(out, [], overwrite)
-    _stretch_warning(rod, T)
+    if resume_file is not None:
+        run, out = _resume_diagram(resume_file, out, kw, deflate_at, N, k), resume_file
+    else:
+        if out is None:
+            raise UserError("--out FILE.h5 is required (or --resume FILE.h5)")
+        gamma, T = _tension(gamma, rod)
+        _check_out(out, [], overwrite)
+        _stretch_warning(rod, T)
+
+        def run(**more):
+            return run_diagram(None, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, deflate_at=deflate_at,
+                               meta=_meta(), **more, **kw)
     with _Interrupts() as intr:
         progress = _Progress(True, intr)
         t0 = time.perf_counter()
         interrupted = False
         try:
-            dg = run_diagram(None, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, deflate_at=deflate_at,
-                             meta=_meta(),
-                             callback=progress, progress=None if quiet else (lambda m: click.echo(m, err=True)),
-                             **kw)
+            dg = run(callback=progress, progress=None if quiet else (lambda m: click.echo(m, err=True)))
         except KeyboardInterrupt:
             interrupted = True
         except (ValueError, TypeError) as exc:
             raise UserError(str(exc)) from None
     if interrupted:
         if os.path.exists(out):
-            click.echo(f"interrupted: {out} holds the branches completed so far", err=True)
+            click.echo(f"interrupted: {out} holds the branches completed so far; finish it with "
+                       f"rodcont diagram --resume {out}", err=True)
         sys.exit(intr.exit_code)
     elapsed = time.perf_counter() - t0
     click.echo(f"critical twists  {', '.join(f'{c:.8f}' for c in dg.critical)}")
@@ -950,6 +1018,40 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
         click.echo(f"  not traced: {origin}: {why}")
     click.echo(f"time             {elapsed:.2f} s")
     _diagram_folds(dg.folds)
+
+
+def _resume_diagram(path, out, kw, deflate_at, N, k):
+    """``diagram --resume FILE.h5``: the runner that finishes it in place (rodcont.restart.resume_diagram);
+    options given must be the file's."""
+    import numpy as np
+    from .branchfile import same_file
+    from .restart import resume_diagram
+    if out is not None and not same_file(out, path):
+        raise UserError(f"--resume finishes {path} in place: drop --out {out} (or resume a copy)")
+    options = _given_options(kw)
+    options.pop("store_every", None)
+    d = _load_any(path)
+    if d.attrs.get("kind") != "diagram":
+        raise UserError(f"{path} is not a diagram file: resume a trace with rodcont trace --resume {path}")
+    stored = [float(v) for v in np.atleast_1d(d.attrs.get("deflate_at", []))] if "deflate_at" in d.attrs else []
+    if _explicit("deflate_at") and sorted(deflate_at) != sorted(stored):
+        raise UserError(f"--deflate differs from the diagram file's ({', '.join(f'{v:g}' for v in stored) or 'none'}"
+                        f"): a resumed diagram keeps its options (drop it)")
+    for name, given, own in (("N", N, d.attrs.get("N")), ("k", k, d.attrs.get("k"))):
+        if _explicit(name) and own is not None and int(given) != int(own):
+            raise UserError(f"--{name} {given} differs from the diagram file's {name} = {own}: a resumed diagram keeps "
+                            f"its mesh (drop it)")
+
+    def check(args):  # the file itself is the output
+        _check_out(path, [], True)
+
+    def run(**more):
+        try:
+            return resume_diagram(path, changes=_rod_changes(), options=options, check=check, data=d, **more)
+        except (ValueError, TypeError) as exc:
+            raise UserError(str(exc)) from None
+
+    return run
 
 
 def _stable_side(f, j) -> str:
@@ -979,12 +1081,22 @@ def folds(file):
     """Print the fold table of a branch or diagram file."""
     d = _load_any(file)
     if d.attrs.get("kind") == "diagram":
-        click.echo(f"# {file}: diagram at Gamma = {d.attrs.get('gamma'):g}, {len(d.branches)} branches")
+        click.echo(f"# {file}: diagram at Gamma = {d.attrs.get('gamma'):g}, {len(d.branches)} branches"
+                   + _diagram_unfinished(file, d))
         _diagram_folds(list(d.folds))
         return
     data = d.branches[0]
     click.echo(f"# {file}: Gamma = {data.gamma:g}, {len(data)} points, stop: {data.attrs.get('stop_reason')}")
     _fold_table(data)
+
+
+def _diagram_unfinished(file, d) -> str:
+    """What the header of an interrupted diagram adds: which branch is unfinished, and how to finish it."""
+    if d.attrs.get("status") not in ("interrupted", "running"):
+        return ""
+    open_ = [b.name for b in d.branches if str(b.status) in ("interrupted", "running")]
+    part = f"; branch {', '.join(open_)} unfinished, its folds not listed" if open_ else ""
+    return f" (INTERRUPTED{part}: finish it with rodcont diagram --resume {file})"
 
 
 @main_group.command()
@@ -995,11 +1107,12 @@ def folds(file):
 @click.option("--label", "labels", multiple=True, help="legend label of each file, in order (repeatable)")
 @click.option("--log/--linear", "log", default=None, help="horizontal scale [default: log for a positive stretch]")
 @click.option("--title", default=None)
-def plot(files, output, xvar, yvar, labels, log, title):
+@click.option("--overwrite", is_flag=True, help="replace -o if it exists")
+def plot(files, output, xvar, yvar, labels, log, title, overwrite):
     """Response diagrams: any two of phi_L, stretch, torque, l0, helical_waves, min_alignment or a
     continued parameter (torque against Phi is the distinguished diagram); one colour per file,
     stable parts solid, unstable dashed, folds marked and labelled with the waves on each side."""
-    _image_out(output, files)
+    _image_out(output, files, overwrite)
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: plots are written as PNG (name it .png)")
     from .plots import PLOT_VARIABLES
@@ -1010,6 +1123,7 @@ def plot(files, output, xvar, yvar, labels, log, title):
     if labels and len(labels) != len(files):
         raise UserError(f"--label: give one per file ({len(files)}), got {len(labels)}")
     data = [_load_any(f) for f in files]
+    _image_out(output, files, overwrite, loaded=data)  # nor a survey the files' reference curves read
     if any(sum(len(b) for b in d.branches) == 0 for d in data):
         raise UserError("a branch file with no points cannot be plotted")
     from .plots import response_diagram
@@ -1029,15 +1143,17 @@ def plot(files, output, xvar, yvar, labels, log, title):
               help="point index (from 0, negative from the end), F<j> or BP<j>; repeatable")
 @click.option("--branch", default=None, help="the branch of a diagram file")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="PNG to write")
-def shape(file, points, branch, output):
+@click.option("--overwrite", is_flag=True, help="replace -o if it exists")
+def shape(file, points, branch, output, overwrite):
     """3D centreline of stored points of a branch file."""
     import numpy as np
     from .branchfile import BranchFileError
     from .rod import EulerianRod
-    _image_out(output, [file])
+    _image_out(output, [file], overwrite)
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: shapes are written as PNG (name it .png)")
     data = _load(file, branch)
+    _image_out(output, [file], overwrite, loaded=(data,))  # nor the survey its reference curve reads
     wall = data.wall
     model = EulerianRod(data.rod, data.curve, wall)
     curves, contacts = [], []
@@ -1119,7 +1235,7 @@ def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced
             raise UserError(f"fold-curve expects FILE.h5:I with I the fold number from 0 (or F<j> from 1), got "
                             f"{label!r}") from None
     data = _load(path, branch)
-    _check_out(out, [path], overwrite)
+    _check_out(out, [path], overwrite, loaded=(data,))
     with _Interrupts() as intr:
         progress = _Progress(quiet, intr)
         t0 = time.perf_counter()
@@ -1182,7 +1298,7 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
           N, k, w, EI, GJ, EA, L):
     """A family, one branch (or --diagram) per Gamma, traced in parallel, and their combined response diagram."""
     from .drivers.solve import check_tension
-    from .drivers.sweep import gamma_name, sweep as run_sweep
+    from .drivers.sweep import branch_path, gamma_name, sweep as run_sweep
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("sweep runs one branch per --gamma; --T is for a single trace or diagram")
     kw = _trace_kwargs(phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
@@ -1216,6 +1332,11 @@ def sweep(gammas, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, 
                 raise ValueError(f"--gamma {g:g} gives a tension that is not finite")
     except (ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
+    from .branchfile import same_file
+    for p in [branch_path(out_dir, g, whole) for g in gammas] + [os.path.join(out_dir, "response_diagram.png")]:
+        for src in _inputs():  # --config, --reference well:FILE
+            if same_file(p, src):
+                raise UserError(f"--out {out_dir}: its file {p} is the input file {src}: write to another directory")
     made = not os.path.exists(out_dir)
     try:
         os.makedirs(out_dir, exist_ok=True)
@@ -1263,11 +1384,14 @@ def main(argv=None):
     import warnings
     warnings.simplefilter("ignore", RuntimeWarning)
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
+    _PENDING.clear()
     try:
         rv = main_group.main(args=argv, prog_name="rodcont", standalone_mode=False)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except SystemExit as exc:
+        if exc.code in (0, None, 130, 143):  # an ending, not an error: what it read is said now
+            _flush_pending()
         # click turns a write to a closed pipe (`rodcont ... | head`) into exit 1: the reader went
         # away, not an error of ours
         if exc.code == 1 and type(sys.stdout).__name__.endswith("PacifyFlushWrapper"):  # click >= 8.2: _Pacify...
@@ -1288,7 +1412,8 @@ def main(argv=None):
         if debug:
             raise
         from .branchfile import BranchFileError
-        if isinstance(exc, BranchFileError):
+        from .safeio import InputFileError, OutputFileError
+        if isinstance(exc, (BranchFileError, InputFileError, OutputFileError)):
             _err(f"rodcont: error: {exc}")
             sys.exit(EXIT_USAGE)
         if isinstance(exc, (MemoryError, OSError)):
@@ -1297,6 +1422,7 @@ def main(argv=None):
         _err(f"rodcont: error: unexpected failure ({type(exc).__name__}: {' '.join(str(exc).split())}); "
              f"please report it with the command line (--debug shows the traceback)")
         sys.exit(1)
+    _flush_pending()
     sys.exit(rv if isinstance(rv, int) else 0)
 
 

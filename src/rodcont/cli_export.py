@@ -28,7 +28,6 @@ def _branch_spec(spec: str):
     Returns ``(path, branch, point, diagram)``: the names not in ``spec`` are None;
     ``diagram`` is the loaded :class:`DiagramData`.
     """
-    from .branchfile import BranchFileError, load_diagram
     path, tail = spec, []
     if not os.path.exists(spec) and ":" in spec:
         parts = spec.rsplit(":", 2)
@@ -40,10 +39,8 @@ def _branch_spec(spec: str):
                 path, tail = head, [last]
     if any(not t.strip() for t in tail):
         raise _user_error(f"expected FILE.h5, FILE.h5:BRANCH or FILE.h5:BRANCH:POINT, got {spec!r}")
-    try:
-        diagram = load_diagram(path)
-    except BranchFileError as exc:
-        raise _user_error(str(exc)) from None
+    from .cli import _load_any  # a file without rodcont's checksum is read, and said so
+    diagram = _load_any(path)
     is_diagram = diagram.attrs.get("kind") == "diagram" or any(b.name for b in diagram.branches)
     branch = point = None
     if len(tail) == 2:
@@ -96,16 +93,28 @@ def _is_branch_file(path: str) -> bool:
         return False
 
 
-def _check_output(path: str, inputs=(), what: str = "-o"):
-    """The output path: a name, not an input, in a directory that exists and is writable, not a branch file."""
-    from .branchfile import BranchFileError, check_writable
-    try:
-        check_writable(path, inputs, what)
-    except BranchFileError as exc:
-        raise _user_error(str(exc)) from None
-    if os.path.isfile(path) and _is_branch_file(path):
+def _check_output(path: str, diagram, overwrite: bool = False, what: str = "-o", series: bool = False):
+    """The output path: a name, none of the command's inputs (the branch file, the surveys it names: any name
+    of them), in a directory that exists and is writable, not a branch file, an existing file only with
+    ``--overwrite`` (a series' files are checked when it is written)."""
+    from .cli import _image_out
+    if os.path.isfile(path) and _is_branch_file(path) and not any(
+            os.path.samefile(path, p) for p in [diagram.path] if os.path.exists(p)):
         raise _user_error(f"{path} is an HDF5 (branch) file: export will not overwrite it, choose another name")
-    return path
+    return _image_out(path, [diagram.path], overwrite or series, loaded=(diagram,))
+
+
+def _series_not_inputs(output: str, n: int, diagram) -> None:
+    """No file of a ``.pvd`` series is one of the command's inputs (under any name)."""
+    from .branchfile import same_file
+    from .cli import _inputs
+    from .export import series_files
+    inputs = _inputs(loaded=(diagram,))
+    for target in series_files(output, n):
+        for src in inputs:
+            if same_file(target, src):
+                raise _user_error(f"-o {output}: its series file {target} is the input file {src}: write to "
+                                  f"another name")
 
 
 def _format(output: str, fmt: str | None, all_points: bool) -> str:
@@ -146,7 +155,8 @@ def _format(output: str, fmt: str | None, all_points: bool) -> str:
 @click.option("--format", "fmt", type=click.Choice(["csv", "vtk", "npz"], case_sensitive=False), default=None,
               help="output format [default: from the suffix of -o: .csv, .vtp/.pvd, .npz]")
 @click.option("-o", "--output", required=True, help="file to write")
-def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
+@click.option("--overwrite", is_flag=True, help="replace -o (and the files of its series) if they exist")
+def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, overwrite):
     """Fields along the rod at a stored point: centreline, directors, curvatures and twist, internal force
     and moment (global and director components), stretch, sampled uniformly in S (or s).
 
@@ -163,11 +173,13 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
         raise _user_error("give --point or --all, not both")
     if not all_points and point is None:
         raise _user_error("which point? give --point I|F<j>|BP<j> (or --all for the whole branch)")
-    _check_output(output, [path])
+    _check_output(output, diagram, overwrite, series=all_points)
     fmt = _format(output, fmt, all_points)
     data = _pick_branch(path, diagram, spec_branch, branch)
     from .branchfile import BranchFileError
     from .export import ExportError, export_branch, export_point, series_dir
+    if all_points and fmt == "vtk":
+        _series_not_inputs(output, len(data), diagram)
     if all_points:
         if samples * len(data) > MAX_SERIES_VALUES:
             raise _user_error(f"--all with --samples {samples} on {len(data)} points is {samples * len(data):,} "
@@ -177,7 +189,7 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
             raise _user_error(f"cannot write the series: {d} exists and is not a directory")
         made = d is not None and not os.path.exists(d)
         try:
-            n = export_branch(data, output, fmt, samples, grid)
+            n = export_branch(data, output, fmt, samples, grid, overwrite=overwrite)
         except (ExportError, BranchFileError, OSError) as exc:
             if made:  # leave nothing half-written behind
                 import shutil
@@ -207,7 +219,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output):
 @click.option("--max-frames", type=click.IntRange(1, 10000), default=300, show_default=True,
               help="at most this many frames (points spread evenly along the branch)")
 @click.option("--title", default=None, help="title over the response diagram")
-def animate_cmd(file, branch, output, fps, samples, max_frames, title):
+@click.option("--overwrite", is_flag=True, help="replace -o if it exists")
+def animate_cmd(file, branch, output, fps, samples, max_frames, title, overwrite):
     """The rod's shape along a branch (3-D, ticks of d1 show the twist) beside the response
     diagram (Phi against stretch) with the current point marked: a GIF, or an MP4 with ffmpeg.
 
@@ -219,7 +232,7 @@ def animate_cmd(file, branch, output, fps, samples, max_frames, title):
     path, spec_branch, spec_point, diagram = _branch_spec(file)
     if spec_point is not None:
         raise _user_error(f"animate shows a whole branch: give {path} or {path}:<branch>, not a point")
-    _check_output(output, [path])
+    _check_output(output, diagram, overwrite)
     from .export import ExportError, animate, ffmpeg_available
     if ext == ".mp4" and not ffmpeg_available():
         raise _user_error("writing MP4 needs ffmpeg, which is not installed (not on PATH): install it, "
