@@ -8,6 +8,8 @@ collocation at Gauss points, Keller pseudo-arclength continuation.
     >>> br = rodcont.trace(gamma=1.0, out="g1.h5")       # a branch, with its folds
     >>> data = rodcont.load_branch("g1.h5")              # read it back: the same type as br
     >>> br.status, br.stop_reason, br.folds[0]["phi_L"]  # why it ended; its first fold
+    >>> sol = rodcont.bvp.solve(problem, {"lam": 0.0})       # your own BVProblem, solved
+    >>> res = rodcont.continue_bvp(problem, "lam", sol, (0, 4))  # and continued, with its folds
 
 Names are imported on first use, so ``import rodcont`` (and the command
 line) costs only what is used.
@@ -28,6 +30,7 @@ _API = {
     "fold_curve": "drivers.foldcurve", "critical_twists": "drivers.diagram", "diagram": "drivers.diagram",
     "deflate": "drivers.diagram", "sweep": "drivers.sweep",
     "load_branch": "branchfile", "load_diagram": "branchfile", "BranchFileError": "branchfile",
+    "bvp": ("bvp", None), "continue_bvp": "bvp", "BVPResult": "bvp",
 }
 
 __all__ = sorted(_API)
@@ -39,7 +42,8 @@ def __getattr__(name):
         raise AttributeError(f"module 'rodcont' has no attribute {name!r}")
     module, attr = target if isinstance(target, tuple) else (target, name)
     import importlib
-    value = getattr(importlib.import_module(f".{module}", __name__), attr)
+    value = importlib.import_module(f".{module}", __name__)
+    value = value if attr is None else getattr(value, attr)  # None: the module itself (rodcont.bvp)
     globals()[name] = value
     return value
 

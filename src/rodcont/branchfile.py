@@ -62,6 +62,12 @@ as attributes: ``stop_reason_first``, ``stop_reason``, ``status_first``, ``statu
 ``missed_crossings`` and ``unlocated`` when any), and a top-level ``/folds`` table of
 every fold with a ``branch`` column.
 
+A user's problem (``kind = "bvp"``, :mod:`rodcont.bvp`) has the same publication, checksum and lock,
+the root attributes of its problem (``problem``, ``param``, ``fields``, ``orders``, ``params``, ``free``,
+``held``, ``interval``, ``k``, ``scales``, ``outputs``: JSON where they are lists), one ``/branch``
+column per name of its table, and ``/special_points``, ``/folds``, ``/branch_points``; it reads as a
+:class:`rodcont.bvp.BVPResult`.
+
 Reading: :func:`load_branch` returns a :class:`rodcont.branch.Branch`, the type the drivers
 return (files written before the status and the special points were stored read too: the
 status is inferred from ``stop_reason``, the labels from the kinds).
@@ -285,7 +291,7 @@ class _Group:
         for key, val in (attrs or {}).items():
             root.attrs[key] = val
         g = root.create_group("branch")
-        self.columns = SCALARS + tuple(extra_columns)
+        self.columns = SCALARS + tuple(c for c in dict.fromkeys(extra_columns) if c not in SCALARS)
         for name in self.columns:
             g.create_dataset(name, (0,), maxshape=(None,), dtype="f8", chunks=(256,), compression="gzip")
         g.create_dataset("helical_waves", (0,), maxshape=(None,), dtype="i4", chunks=(256,), compression="gzip")
@@ -596,7 +602,7 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
     except (ValueError, TypeError) as exc:
         raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
     param = attrs.get("param", "phi_L")
-    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA"):
+    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA", "torque", "l0"):
         raise BranchFileError(f"{path}: damaged branch file (param = {param!r})")
     return attrs
 
@@ -732,6 +738,16 @@ def _root_attrs(path: str, f) -> dict:
     return _validate_attrs(path, attrs)
 
 
+def _user_problem(path: str, f, branch=None):
+    """A branch of a user's problem (``kind = "bvp"``, :mod:`rodcont.bvp`), or None for the rod's files."""
+    if "rodcont_version" not in f.attrs or _plain(f.attrs.get("kind")) != "bvp":
+        return None
+    if branch is not None:
+        raise BranchFileError(f"{path} is a single branch, not a diagram: no branch {branch}")
+    from .bvp import read_file
+    return read_file(path, f)
+
+
 _READ_ERRORS = (KeyError, OSError, ValueError, TypeError, IndexError, UnicodeDecodeError, AttributeError,
                 RuntimeError, OverflowError)
 
@@ -766,6 +782,9 @@ def _load_branch(path: str, branch: str | int | None = None) -> Branch:
     f = _open(path)
     try:
         with f:
+            user = _user_problem(path, f, branch)
+            if user is not None:
+                return user
             attrs = _root_attrs(path, f)
             if "branches" in f:
                 names = sorted(f["branches"].keys(), key=lambda s: (len(s), s))
@@ -797,6 +816,10 @@ def _load_diagram(path: str) -> DiagramData:
     f = _open(path)
     try:
         with f:
+            user = _user_problem(path, f)
+            if user is not None:
+                return DiagramData(path, user.attrs, [user], Table([dict(row, branch=0) for row in user.folds],
+                                                                   columns=tuple(user.folds.columns) + ("branch",)))
             attrs = _root_attrs(path, f)
             if "branches" not in f:
                 one = _read_group(path, f, attrs)

@@ -82,9 +82,9 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
         c = colours(n % 10)
         param = d.attrs.get("param", "phi_L")
         xv = x or (param if param != "phi_L" else "stretch")
-        yv = y or "phi_L"
+        yv = y or d.attrs.get("plot_y", "phi_L")  # a user's problem (rodcont.bvp) names its own
         g = d.attrs.get("gamma")
-        label = (labels[n] if labels and n < len(labels) else
+        label = (labels[n] if labels and n < len(labels) else str(d.attrs.get("problem")) if "problem" in d.attrs else
                  (f"Γ = {g:g}" if isinstance(g, float) and math.isfinite(g) else f"T = {d.attrs.get('T', 0):g}")
                  + {"diagram": " (diagram)", "fold_curve": f" (fold locus in {param})"}.get(d.attrs.get("kind"), ""))
         is_diagram = d.attrs.get("kind") == "diagram"
@@ -118,12 +118,14 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
         xscale = "log" if xname == "stretch" and np.all(allx > 0) and allx.max() > 30 * allx.min() else "linear"
     ax.set_xscale(xscale)
     ax.set_xlabel(LABELS.get(xname, xname))
-    ax.set_ylabel(LABELS.get(y or "phi_L", y or "phi_L"))
+    yname = y or files[0].attrs.get("plot_y", "phi_L")
+    ax.set_ylabel(LABELS.get(yname, yname))
     ax.grid(True, alpha=0.3)
     extra = "   -- unstable" if any("unstable_modes" in b.branch for d in files for b in d.branches) else ""
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0,
               title=f"○ fold (waves)   × end{extra}", title_fontsize=7)
-    ax.set_title(title or "Response diagram: twisted heavy clamped rod")
+    ax.set_title(title or (f"Branches of {files[0].attrs['problem']}" if kinds == {"bvp"}
+                           else "Response diagram: twisted heavy clamped rod"))
     fig.tight_layout()
     save_figure(fig, path)
     return fig
