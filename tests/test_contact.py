@@ -9,6 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
+import rodcont
 from conftest import assert_picture, assert_tangent_matches_differences, run
 from rodcont.contact import Wall, contact_zones
 from rodcont.drivers.solve import solve_equilibrium
@@ -287,7 +288,7 @@ def _sag_in_pipe(c, eps):
     its system, unknowns and contact report."""
     import rodcont
     from rodcont.system import RodSystem
-    wall = Wall(c, eps=eps)
+    wall = Wall(c, eps=eps, force_scale=10.0)  # the law P = w as eps -> 0 (given: a trace stiffens only its own)
     b = rodcont.trace(1.0, wall=wall, phi_max=1e-3)
     sysm = RodSystem(RodParameters(), gamma=1.0, breakpoints=b.meshes[0], wall=wall)
     x = b.coefficients[0]
@@ -1045,6 +1046,33 @@ def test_every_shipped_conduit_solves_accurately_and_without_warning_as_its_file
     assert abs(float(lines["side_force"]) / fine.outputs["side_force"] - 1) < 1e-3
 
 
+def test_the_taper_examples_documented_trace_is_accurate_and_says_nothing(tmp_path, capsys):
+    """The trace line conduit_taper.toml documents: every stored point within the accuracy guard, the bound
+    reached, no warning in the summary. (The line it documented before, to Phi = 40, ended at the accuracy guard
+    with N_max = 400 at Phi = 23.49, its fold at 25.95 only bracketed, and said nothing of either.)"""
+    lines = [line.lstrip("#").strip() for line in open(os.path.join(EXAMPLES, "conduit_taper.toml"))
+             if line.startswith("#")]
+    (args,) = [line.split()[1:] for line in lines if line.startswith("rodcont trace ")]
+    args = [os.path.join(ROOT, a) if a.startswith("examples/") else a for a in args]
+    out_file = str(tmp_path / "taper.h5")
+    args[args.index("--out") + 1] = out_file
+    code, out, err = run(args + ["--quiet"], capsys)
+    assert code == 0 and "warning" not in out + err, out + err
+    d = rodcont.load_branch(out_file)
+    assert d.status == "bound" and max(d.table["error"]) <= 1e-6 and not d.unlocated and not d.missed_crossings
+
+
+def test_a_bracketed_fold_and_one_above_fold_error_are_said_in_the_summary(tmp_path, capsys):
+    """The taper's branch past its fold (to Phi = 27): the fold at 25.9535 is only bracketed and its estimate is
+    above --fold-error; the summary says both in warning lines (the code before said neither)."""
+    code, out, err = run(["trace", "--gamma", "1", "--conduit", os.path.join(EXAMPLES, "conduit_taper.toml"),
+                          "--phi-max", "27", "--out", str(tmp_path / "t.h5"), "--quiet"], capsys)
+    assert code == 0, err
+    warned = [ln for ln in out.splitlines() if ln.startswith("warning")]
+    assert any("is bracketed, not located" in ln and "25.953" in ln for ln in warned), out
+    assert any("above --fold-error" in ln for ln in warned), out
+
+
 @pytest.mark.slow
 def test_the_well_example_with_the_readmes_drill_pipe_is_right_at_its_default_mesh(capsys):
     """The README's 1 km drill pipe (EI = 1.25e6 N m^2, w = 235 N/m, T = 1e5 N) in the example well, as the
@@ -1133,7 +1161,7 @@ def test_a_file_without_its_force_scale_reproduces_its_points(tmp_path):
     import rodcont
     from rodcont.system import point_system
     out = str(tmp_path / "h.h5")
-    rodcont.trace(1.0, N=30, wall=Wall(0.01), curve="helix:0.05,1", phi_max=0.3, out=out)
+    rodcont.trace(1.0, N=30, wall=Wall(0.01, force_scale=10.0), curve="helix:0.05,1", phi_max=0.3, out=out)
     with h5py.File(out, "r+") as h:
         spec = h.attrs["conduit"]
         assert "force_scale=10.0" in spec

@@ -124,7 +124,15 @@ def test_conduit_traces_give_the_same_events_and_statuses(kind, tmp):
     d = rodcont.load_branch(os.path.join(tmp, f"conduit_{kind}.h5"))
     assert_folds(got["folds"], ref["folds"], ref["fold_error"])
     assert got["branch_points"] == ref["branch_points"]
-    assert d.status == old_status(ref["stop_reason"]) and got["points"] == ref["points"]
+    assert d.status == old_status(ref["stop_reason"])
+    # a conduit file without force_scale now takes the problem's own (issue 22 item 4: the helix's, T kappa =
+    # 17.97, where the code before took w = 10): another contact law, solved with other steps; the same points
+    # where the law is the same
+    from rodcont.contact import default_force_scale, load_conduit
+    curve, wall = load_conduit(os.path.join(cases.ROOT, "examples", f"conduit_{kind}.toml"), 1.0)
+    rod = rodcont.RodParameters()
+    if default_force_scale(rod, 10.0, curve, wall) == wall.scale(rod.w, rod.EI, rod.L):
+        assert got["points"] == ref["points"]
     assert_special(ref["special"], d.table["kind"], d.table["phi_L"])
 
 

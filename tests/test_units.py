@@ -15,8 +15,12 @@ is a diagram or a trace).
   :func:`rodcont.stability.spectrum` at every point of a diagram, the points
   mapped exactly into other units (the stability module alone).
 * :func:`test_diagram_in_any_units`, :func:`test_conduit_trace_in_any_units`:
-  solved again in other units, end to end. Expected to fail (strict) for
-  causes outside ``stability.py``, each named in its mark.
+  solved again in other units, end to end. They failed on five causes outside
+  ``stability.py``, each now in the problem's own scales: the weight homotopy's
+  steps (``straight_seed``), the error estimate's border and the floor of its
+  parameter term (``mesh.ErrorEstimator``), the corrector's and Newton's
+  convergence tests (``continuation.Tracker``), the critical twists' pencil
+  (``diagram._pencil``).
 """
 
 import numpy as np
@@ -125,23 +129,6 @@ def test_stability_counts_in_any_units(gamma1_diagram, u, v):
 # --------------------------------------------------------------------------
 # Solved again in other units, end to end
 # --------------------------------------------------------------------------
-OUTSIDE_STABILITY = (
-    "not unit-invariant outside stability.py (lines: HEAD 0ee0293 / the working tree of issue 22): "
-    "(1) drivers/trace.py:290/323 straight_seed gives the weight homotopy steps in units of w "
-    "(ds = 0.2 w, ds_min = 1e-9 w, ds_max = w) while the tracker's arclength is already divided by "
-    "arclength_scale (max(w, EI/L^3)): with w = 1e10 (a = 1e-3, b = 1e6) every step diverges down to ds_min, "
-    "with w = 1e-8 (a = 1e3, b = 1e-6) 400 steps end at w = 6e-14, and the diagram keeps only its primary "
-    "branch; (2) mesh.py:131/140 ErrorEstimator.estimate borders the fine problem with the raw tangent "
-    "(0.5/n tx, 0.5 tp), a hyperplane that depends on the units: the first estimate of Gamma = 1 reads "
-    "4.690e-7 or 4.717e-7 (a = 10), the mesh gets 26 or 27 intervals and the points part; "
-    "(3) continuation.py Tracker._correct (HEAD 589-664 / 598-673) and linalg.newton_solve stop at "
-    "max|dy| <= tol (1 + max|y|) on the raw unknowns: with a = 1e-3, b = 1e-6 the deflections converge to "
-    "1e-5 of themselves and the fold torque moves by 9e-8; "
-    "(4) drivers/diagram.py _refine (99/105): critical twists refined on the raw pencil, 7e-8 (HEAD) or "
-    "9e-9 (working tree) off with a = 1e-3, b = 1e6")
-
-
-@pytest.mark.xfail(strict=True, reason=OUTSIDE_STABILITY)
 @settings(**FEW)
 @example(u=-3.0, v=6.0)
 @given(u=LENGTH_EXP, v=FORCE_EXP)
@@ -181,11 +168,6 @@ def _events(branch):
     return [float(p) for p, k in zip(branch.table["phi_L"], branch.table["kind"]) if str(k).startswith("event:contact")]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "not unit-invariant outside stability.py: causes (2) and (3) of test_diagram_in_any_units "
-    "(the error estimate's border, the corrector's raw max norm): the points and meshes part, and with them "
-    "the contact onset (9.5561572 at a = 1e3, b = 1e6 against 9.5561549), the zone ends (7e-5 L at "
-    "a = 0.2, b = 3e3) and the side force (2e-4 relative) at Phi = 12"))
 @settings(**FEW)
 @example(u=3.0, v=6.0)
 @given(u=LENGTH_EXP, v=FORCE_EXP)

@@ -432,6 +432,13 @@ class AdaptiveContinuation:
             base, bproblem = self.last
             return self._remesh(bproblem, base, self.accuracy.measure(bproblem, base), at_least=err,
                                 target=a.fold_error * a.fold_target, ahead=(problem, pt))
+        if pt.kind == Kind.FOLD and err > a.fold_error:
+            # stored above its promise (the mesh may not grow, or refining did not bring it down): said, not silent
+            why = ("the mesh is fixed" if not a.adapt else f"N_max = {a.N_max} reached" if not grow else
+                   f"{a.fold_remeshes} refinements did not bring it down")
+            pt.data["fold_error_exceeded"] = True
+            warnings.warn(f"the fold at p = {pt.p:.10g} has an estimated error {err:.2g} above fold_error = "
+                          f"{a.fold_error:g} ({why})", RuntimeWarning, stacklevel=4)
         if err <= a.max_error:
             return None
         if grow and self.remeshes_here < a.error_remeshes:

@@ -90,12 +90,13 @@ class Branch(ContinuationResult):
     # ---- the rod's columns and fold table ---------------------------------------------
     def row(self, pt: Point) -> dict:
         out = {name: pt.data[name] for name in OUTPUTS}
+        # dphi_ds: the tangent's phi_L component (the parameter's, or, under a torque, the unknown's; 0 at fixed phi_L)
+        dphi = float(pt.tp) if self.param == "phi_L" else float(pt.data.get("dphi_ds", 0.0))
         out.update(error=float(pt.data.get("error", np.nan)), unstable_modes=int(pt.data.get("unstable_modes", -1)),
-                   arclength=pt.arclength, dphi_ds=float(pt.tp) if self.param == "phi_L" else 0.0,
-                   kind=str(pt.kind), located=bool(pt.located))
+                   arclength=pt.arclength, dphi_ds=dphi, kind=str(pt.kind), located=bool(pt.located))
         if self.param != "phi_L":
             out[self.param] = float(pt.data[self.param])
-        for name in CONTACT_COLUMNS:  # inside a conduit
+        for name in CONTACT_COLUMNS + ("T",):  # inside a conduit; T solved for under length control
             if name in pt.data:
                 out[name] = pt.data[name]
         return out

@@ -291,7 +291,7 @@ class _Group:
         for key, val in (attrs or {}).items():
             root.attrs[key] = val
         g = root.create_group("branch")
-        self.columns = SCALARS + tuple(extra_columns)
+        self.columns = SCALARS + tuple(c for c in dict.fromkeys(extra_columns) if c not in SCALARS)
         for name in self.columns:
             g.create_dataset(name, (0,), maxshape=(None,), dtype="f8", chunks=(256,), compression="gzip")
         g.create_dataset("helical_waves", (0,), maxshape=(None,), dtype="i4", chunks=(256,), compression="gzip")
@@ -602,7 +602,7 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
     except (ValueError, TypeError) as exc:
         raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
     param = attrs.get("param", "phi_L")
-    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA"):
+    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA", "torque", "l0"):
         raise BranchFileError(f"{path}: damaged branch file (param = {param!r})")
     return attrs
 

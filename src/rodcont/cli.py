@@ -585,8 +585,12 @@ def main_group(ctx, debug):
 @click.option("--uniform", is_flag=True, help="keep the first mesh (no refinement)")
 @click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=4000, show_default=True,
               help="largest mesh the refinement may reach")
+@click.option("--out", default=None, type=click.Path(dir_okay=False),
+              help="write the equilibrium as a one-point branch file (export, shape, trace --start read it)")
+@click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @rod_options
-def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, N, k, w, EI, GJ, EA, L):
+def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ, EA,
+          L):
     """One equilibrium at (Gamma, Phi), reached by loading Phi (or the end torque) up from 0.
 
     The mesh starts from the problem's lengths (or --N) and is refined until the
@@ -597,7 +601,7 @@ def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max,
     conduit min_gap, side_force and the contact zones), Newton's iterations and
     residual norm, the mesh N, the error estimates (what to trust).
     """
-    from .drivers.solve import ConvergenceError, solve_equilibrium
+    from .drivers.solve import ConvergenceError, solve_equilibrium, write_equilibrium
     rod = _rod(w, EI, GJ, EA, L)
     T = click.get_current_context().meta.get("rodcont.T")
     if l0 is not None and (gamma is not None or T is not None):
@@ -608,6 +612,8 @@ def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max,
         raise UserError("give --phi (the end rotation) or --torque (the end torque), one of them")
     try:
         curve, wall = _conduit(conduit, rod)
+        if out is not None:
+            _check_out(out, [conduit] if conduit is not None else [], overwrite)
         if T is not None:
             _stretch_warning(rod, T)
         eq = solve_equilibrium(None if T is not None else gamma, phi, rod, N=N if _explicit("N") else None, k=k,
@@ -616,6 +622,9 @@ def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max,
     except (ConvergenceError, ValueError, TypeError) as exc:
         raise UserError(str(exc)) from None
     _print_equilibrium(eq, wall is not None)
+    if out is not None:
+        write_equilibrium(eq, out, overwrite=overwrite, meta=_meta(), max_error=max_error)
+        click.echo(f"wrote {out}", err=True)
 
 
 def _print_equilibrium(eq, conduit: bool) -> None:
@@ -657,8 +666,16 @@ def _print_equilibrium(eq, conduit: bool) -> None:
 @click.option("--switch", is_flag=True, help="with --start at a branch point: follow the other branch")
 @click.option("--from-straight", type=float, default=None, callback=_number("--from-straight"),
               help="start near the straight twisted state at this Phi (weight homotopy)")
-@click.option("--param", type=click.Choice(["phi_L", "w", "T", "gamma", "EI", "GJ", "EA"]), default="phi_L",
-              show_default=True, help="the continued parameter (others than phi_L at fixed Phi, with --range)")
+@click.option("--from-critical", type=click.IntRange(1, 1000), default=None,
+              help="N: start at the N-th critical twist of the weightless straight rod (--w 0), along its helical "
+                   "branch (a phase condition fixes the branch's turn about the axis)")
+@click.option("--l0", "l0", type=float, default=None, callback=_number("--l0", positive=True),
+              help="unstressed length instead of --gamma/--T: the tension is solved for at each point (column T)")
+@click.option("--torque", type=float, default=None, callback=_number("--torque"),
+              help="end torque held fixed (Phi solved for) in a trace of a rod parameter from --start")
+@click.option("--param", type=click.Choice(["phi_L", "w", "T", "gamma", "EI", "GJ", "EA", "torque", "l0"]),
+              default="phi_L", show_default=True,
+              help="the continued parameter (others than phi_L with --range; torque: the end rotation free)")
 @click.option("--range", "prange", type=float, nargs=2, default=None, callback=_number("--range"),
               help="A B: the interval of --param (when it is not phi_L)")
 @click.option("--direction", type=click.Choice(["up", "down"]), default="up", show_default=True,
@@ -671,8 +688,8 @@ def _print_equilibrium(eq, conduit: bool) -> None:
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error, max_defect,
-          fold_error, forced, uniform, N_max, store_every, start, resume_file, extend, switch, from_straight, param,
-          prange, direction, conduit, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
+          fold_error, forced, uniform, N_max, store_every, start, resume_file, extend, switch, from_straight,
+          from_critical, l0, torque, param, prange, direction, conduit, out, overwrite, quiet, N, k, w, EI, GJ, EA, L):
     """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
 
     Folds, branch points, forced values and the guards are located, not just
@@ -701,7 +718,13 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         data, pt, label = _point_spec(start)
         if param != "phi_L" and prange is None and param != data.param:
             raise UserError(f"--param {param} needs --range A B")
+        if from_critical is not None:
+            raise UserError("give --start or --from-critical, not both")
         args = _restart_args(data, label, start, param, switch, N, k, conduit, kw)
+        if torque is not None:  # a torque held from the point on (its Phi solved for), or an unstressed length
+            args["torque"] = torque
+        if l0 is not None:
+            args["l0"], args["T"] = l0, None
         _check_out(out, args.inputs, overwrite, loaded=(data,))
         for note in args.notes:
             click.echo(f"rodcont: note: {note}", err=True)
@@ -714,28 +737,35 @@ def trace(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, m
         return
     if param != "phi_L" and prange is None:
         raise UserError(f"--param {param} needs --range A B")
-    extra = dict(param=param)
+    extra = dict(param=param, l0=l0, torque=torque, from_critical=from_critical)
+    T = None
     if switch:
         raise UserError("--switch needs --start FILE.h5:BP<j>")
     rod = _rod(w, EI, GJ, EA, L)
-    if gamma is None and click.get_current_context().meta.get("rodcont.T") is None:
-        raise UserError("--gamma or --T is required (or --start FILE.h5:POINT)")
-    gamma, T = _tension(gamma, rod)
-    gamma = None
+    if l0 is not None:  # the tension solved for
+        if gamma is not None or click.get_current_context().meta.get("rodcont.T") is not None:
+            raise UserError("give one of --gamma, --T and --l0")
+    elif gamma is None and click.get_current_context().meta.get("rodcont.T") is None:
+        raise UserError("--gamma or --T is required (or --l0, or --start FILE.h5:POINT)")
+    else:
+        gamma, T = _tension(gamma, rod)
+        gamma = None
     if conduit is not None:
         if from_straight is not None:
             raise UserError("--from-straight is not available inside a conduit (trace from the sag)")
         extra["curve"], extra["wall"] = _conduit(conduit, rod)
     else:
-        extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else None)
+        extra["curve"] = _curve(rod, "--from-straight" if from_straight is not None else
+                                "--from-critical" if from_critical is not None else None)
     if from_straight is not None:
         extra["from_straight"] = from_straight
         if param != "phi_L":
             extra["phi_L"] = from_straight
-    elif param != "phi_L":
+    elif param not in ("phi_L", "torque"):
         raise UserError(f"--param {param} starts from --start FILE:POINT or --from-straight PHI")
     _check_out(out, [], overwrite)  # nor the --conduit file, its survey, --config, --reference well:FILE
-    _stretch_warning(rod, T)
+    if T is not None:
+        _stretch_warning(rod, T)
     extra["meta"] = _meta()
     if param in ("T", "gamma") and prange is not None:
         # a trace in the tension reaches the ends of its range: warn for the farther one
@@ -879,6 +909,7 @@ def _summary(data, elapsed):
         click.echo(f"warning      unstable modes {n0} -> {n1} between {data.param} = {a:.10g} and {b:.10g}: "
                    f"more eigenvalues crossed zero than the located folds and branch points account for "
                    f"(unseen bifurcations; retrace with a smaller --ds-max)")
+    _fold_warnings(data)
     for kind, a, b in json.loads(data.attrs.get("unlocated", "[]")):
         click.echo(f"warning      a {kind.replace('_', ' ')} between {data.param} = {a:.10g} and {b:.10g} was "
                    f"detected but could not be located (no point between them converged); it is not in the "
@@ -888,6 +919,31 @@ def _summary(data, elapsed):
     for j in range(len(bp.get("index", []))):
         click.echo(f"BP{j + 1:<3d} {bp['index'][j]:6d} {bp['phi_L'][j]:18.12f} {bp['stretch'][j]:18.12f}  "
                    f"(follow the other branch: --start FILE:BP{j + 1} --switch)")
+
+
+def _fold_warnings(data) -> None:
+    """A fold only bracketed, or located above --fold-error, is said in the summary (the table marks it too); so is
+    where a trace in a conduit went deeper than the penetration guard."""
+    import json
+    f = data.folds
+    index = list(f.get("index", []))
+    located = list(f.get("located", [1] * len(index)))
+    fold_error = (data.settings.get("adaptive") or {}).get("fold_error")
+    deep = json.loads(data.attrs.get("penetration_guard", "[]") or "[]")  # a contact law too soft for the loads
+    if deep:
+        click.echo(f"warning      the rod sits deeper than 1e-3 of the clearance inside the wall from {data.param} "
+                   f"between {deep[0]:.10g} and {deep[1]:.10g} ({deep[2]:.2g} there): the contact law is too soft "
+                   f"for these loads (a larger force_scale in the conduit file)")
+    for j, i in enumerate(index):
+        phi = f["phi_L"][j]
+        if not located[j]:
+            click.echo(f"warning      fold F{j + 1} at phi_L = {phi:.10g} is bracketed, not located: its location did "
+                       f"not converge (the values are those of the nearest converged point); a smaller --ds-max "
+                       f"or a larger --N-max may locate it")
+        err = float(data.table["error"][int(i)]) if "error" in data.table else math.nan
+        if fold_error and err > float(fold_error):
+            click.echo(f"warning      fold F{j + 1} at phi_L = {phi:.10g} has an estimated error {err:.2g} above "
+                       f"--fold-error {float(fold_error):g} (its mesh could not be refined enough: --N-max)")
 
 
 def _fold_table(data):
@@ -948,6 +1004,8 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @trace_options
 @click.option("--deflate", "deflate_at", type=float, multiple=True, callback=_number("--deflate"),
               help="a Phi where deflated Newton looks for solutions the seeds missed (repeatable)")
+@click.option("--l0", "l0", type=float, default=None, callback=_number("--l0", positive=True),
+              help="unstressed length instead of --gamma/--T: the tension is solved for at each point")
 @click.option("--out", default=None, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
 @click.option("--resume", "resume_file", default=None, type=click.Path(dir_okay=False),
               help="finish the interrupted diagram in FILE.h5 (its complete branches kept), into FILE.h5 itself")
@@ -955,8 +1013,8 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
 def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min, min_alignment, max_error,
-            max_defect, fold_error, forced, uniform, N_max, store_every, deflate_at, out, resume_file, overwrite, quiet,
-            N, k, w, EI, GJ, EA, L):
+            max_defect, fold_error, forced, uniform, N_max, store_every, deflate_at, l0, out, resume_file, overwrite,
+            quiet, N, k, w, EI, GJ, EA, L):
     """The whole response diagram at Gamma: every branch in [phi-min, phi-max], every fold.
 
     The primary branch from Phi = 0, one seed per interval between
@@ -974,12 +1032,16 @@ def diagram(gamma, phi_max, phi_min, stretch_max, max_steps, ds, ds_max, ds_min,
     else:
         if out is None:
             raise UserError("--out FILE.h5 is required (or --resume FILE.h5)")
-        gamma, T = _tension(gamma, rod)
+        T = None
+        if l0 is None:
+            gamma, T = _tension(gamma, rod)
+            _stretch_warning(rod, T)
+        elif gamma is not None or click.get_current_context().meta.get("rodcont.T") is not None:
+            raise UserError("give one of --gamma, --T and --l0")
         _check_out(out, [], overwrite)
-        _stretch_warning(rod, T)
 
         def run(**more):
-            return run_diagram(None, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, deflate_at=deflate_at,
+            return run_diagram(None, rod, N=N, k=k, T=T, l0=l0, out=out, overwrite=overwrite, deflate_at=deflate_at,
                                meta=_meta(), **more, **kw)
     with _Interrupts() as intr:
         progress = _Progress(True, intr)

@@ -70,6 +70,7 @@ from enum import Enum
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
+from scipy import sparse
 
 from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
 from .result import ContinuationResult, Status
@@ -441,6 +442,13 @@ class Tracker:
         if np.ndim(self.wx) == 0:
             self.wx = float(self.wx)
         self.wp = (1.0 - s.theta) / float(sp) ** 2
+        # the corrector's and Newton's convergence tests in the problem's own units (max norm of (x/ux, p/up):
+        # ``unit_scale()``, else the arclength's): on the raw unknowns a change of units moved the fold torque by
+        # 9e-8 (tests/test_units.py)
+        units = getattr(problem, "unit_scale", None)
+        ux, up = units() if units is not None else (sx, sp)
+        self._sx = np.broadcast_to(np.asarray(ux, float), (self.n,)).copy()
+        self._sy = np.append(self._sx, float(up))
         self._x0, self._p0, self._t0 = np.asarray(x0, float), float(p0), tangent0
         self.steps = 0
         self.newton_iterations = 0
@@ -478,6 +486,28 @@ class Tracker:
 
     def _wdot(self, a: Point, b: Point) -> float:
         return float((self.wx * a.tx) @ b.tx) + self.wp * a.tp * b.tp
+
+    def _ymax(self, v) -> float:
+        """Max norm of ``(x, p)`` (or of a correction) in the problem's own scales."""
+        return max_norm(np.asarray(v, float) / self._sy)
+
+    def _newton(self, x0, p: float, max_iter: int):
+        """Newton at fixed ``p`` (:func:`rodcont.linalg.newton_solve`) on the unknowns in their own scales,
+        ``x / sx``: its convergence test then means the same in any units."""
+        sx = self._sx
+        if np.all(sx == 1.0):
+            return newton_solve(lambda x: self._linearise(x, p)[:2], lambda x: self.problem.residual(x, p), x0,
+                                tol=self.settings.newton_tol, max_iter=max_iter)
+        D = sparse.diags(sx)
+
+        def linearise(y):
+            F, J = self._linearise(sx * y, p)[:2]
+            return F, (J @ D).tocsc() if sparse.issparse(J) else np.asarray(J) * sx
+
+        r = newton_solve(linearise, lambda y: self.problem.residual(sx * y, p), np.asarray(x0, float) / sx,
+                         tol=self.settings.newton_tol, max_iter=max_iter)
+        r.x = sx * r.x
+        return r
 
     # ---- linear algebra on the problem -----------------------------------
     def _linearise(self, x, p):
@@ -598,11 +628,11 @@ class Tracker:
                     return None, "the residual is not finite"
                 dy = chord.solve(-r)
                 iterations += 1
-                size = max_norm(dy)
+                size = self._ymax(dy)
                 if not math.isfinite(size):
                     return None, "the corrector diverged"
                 y_next = y + dy
-                scale = accept * (1 + max_norm(y_next))
+                scale = accept * (1 + self._ymax(y_next))
                 if sizes:
                     rate = size / sizes[-1] if sizes[-1] > 0 else 0.0
                     if len(sizes) == 1:
@@ -636,7 +666,7 @@ class Tracker:
                 return None, "the residual is not finite"
             res = max_norm(r)
             # converged to rounding: the residual no longer falls and the steps are tiny
-            stalled = res >= 0.5 * prev_res and prev <= math.sqrt(tol) * (1 + max_norm(y))
+            stalled = res >= 0.5 * prev_res and prev <= math.sqrt(tol) * (1 + self._ymax(y))
             prev_res = res
             try:
                 lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
@@ -646,8 +676,8 @@ class Tracker:
             info["newton"] += 1
             iterations += 1
             dy = lu.solve(-r)
-            size = max_norm(dy)
-            rounding = size <= math.sqrt(tol) * (1 + max_norm(y))
+            size = self._ymax(dy)
+            rounding = size <= math.sqrt(tol) * (1 + self._ymax(y))
             # On a regular step, Newton that does not contract (theta = |dy_k| / |dy_k-1| >= 1) has left
             # its basin: a shorter step is cheaper than the iterations it would waste finding that out,
             # and resolves what the long one jumps (with 2x here, a trace in T missed the split of a
@@ -660,7 +690,7 @@ class Tracker:
             # a residual that stops falling while the steps still contract is a slow (stiff) start of
             # Newton's quadratic phase, not rounding: a stiff contact law showed 3.8e-4 then 6.4e-5 with
             # the residual at 0.1, and the point was off by 1e-6 of the span
-            if size <= accept * (1 + max_norm(y)) or (stalled and rounding and size > 0.25 * prev
+            if size <= accept * (1 + self._ymax(y)) or (stalled and rounding and size > 0.25 * prev
                                                        and _at_rounding(F, J, Fp, x, p)):
                 t = lu.solve(e)
                 tx, tp = t[:-1], float(t[-1])
@@ -671,13 +701,13 @@ class Tracker:
                 sign, log = lu.det()
                 solver = lu.with_last_row(row, self._border(tx, tp), t)
                 y = y + dy
-                if size > tol * (1 + max_norm(y)):
+                if size > tol * (1 + self._ymax(y)):
                     # what the step left: one correction with this factorisation (contraction ~ |dy|)
                     r = self._augmented_residual(y, base, ds)
                     dy = lu.solve(-r)
                     iterations += 1
                     y = y + dy
-                    if not (max_norm(dy) <= tol * (1 + max_norm(y))
+                    if not (self._ymax(dy) <= tol * (1 + self._ymax(y))
                             or _at_rounding(r[:-1], J, Fp, y[:-1] - dy[:-1], float(y[-1] - dy[-1]))):
                         prev = size
                         continue
@@ -711,8 +741,7 @@ class Tracker:
             return pt
         if self._t0 is None:
             tx_ref, tp_ref = np.zeros(self.n), float(s.direction)
-            r = newton_solve(lambda x: self._linearise(x, self._p0)[:2],
-                             lambda x: self.problem.residual(x, self._p0), self._x0, tol=s.newton_tol, max_iter=30)
+            r = self._newton(self._x0, self._p0, 30)
             self.newton_iterations += r.iterations
             x, p = r.x, self._p0
             ok, message = r.converged, r.message
@@ -876,8 +905,7 @@ class Tracker:
         or None if Newton there does not converge (near a fold)."""
         theta = (v - base.p) / (new.p - base.p) if new.p != base.p else 0.5
         x0 = base.x + theta * (new.x - base.x)
-        r = newton_solve(lambda x: self._linearise(x, v)[:2], lambda x: self.problem.residual(x, v), x0,
-                         tol=self.settings.newton_tol, max_iter=6)
+        r = self._newton(x0, v, 6)
         self.newton_iterations += r.iterations
         if not r.converged:
             return None
@@ -991,7 +1019,10 @@ class Tracker:
                 self.stop = StopReason(Status.MAX_STEPS, f"maximum number of steps ({s.max_steps}) reached")
                 return
             base = self.current
-            if base.solver is None:  # e.g. an exact start: factorise at the base once
+            # factorise at the base once (a point without a corrector matrix); not at an exact start, a branch point
+            # where the bordered matrix is singular by construction: its LU (regular by rounding) sent the chord
+            # off and the corrector diverged at every step size (a switch from a critical twist of the straight rod)
+            if base.solver is None and not (self.exact_start and base.kind == Kind.START):
                 lin = self._linearise(base.x, base.p)
                 try:
                     base.solver = self._tangent_at(base.x, base.p, base.tx, base.tp, lin)[4]

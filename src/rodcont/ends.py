@@ -10,7 +10,9 @@ condition of each kind it needs:
   the solution, with ``phi(L) = phi_L - beta`` defining it);
 * axial, at one end: :class:`Tension` (``F . K3 = T`` there, the parameter ``T``) or, at ``S = L``,
   :class:`UnstressedLength` (``int n / alpha dS = l0``, the parameter ``l0``: ``T`` becomes an unknown,
-  still defined as ``F . K3(L)``; an integral condition of the collocation core).
+  still defined as ``F . K3(L)``; an integral condition of the collocation core);
+* optionally :class:`Phase` (not an end condition: a phase condition that fixes the turn of a weightless rod
+  about its straight axis, freeing the weight as an unfolding parameter).
 
 :class:`RodEnds` holds the two ends, checks that the conditions close the
 problem (8 position, 2 twist, 1 axial condition, plus one per freed parameter
@@ -121,6 +123,33 @@ class Tension(EndCondition):
 
 
 @dataclass(frozen=True)
+class Phase(EndCondition):
+    """A phase condition for a weightless rod on the straight reference, which can turn about its axis as a whole:
+    its buckled equilibria come in circles and the Jacobian is singular on them. ``int_0^L Delta . g dS = 0``
+    (``g`` the weight direction, across the axis) fixes the turn, and the weight ``w`` along ``g`` becomes an
+    unknown (an unfolding parameter): 0 on every equilibrium of the symmetric rod (the discrete equations keep
+    the symmetry: to rounding), so the equilibria are those of the weightless rod, each once. Regular where
+    the weight's moment about the axis on the equilibrium, ``int Delta . (g x K3) dS``, is not 0 (on the
+    straight rod and on a helix of non-zero mean offset); a bifurcation from the straight rod (a circle of
+    helical modes) becomes a simple branch point, located and switched like any other. Not an end condition:
+    it sits at ``S = L`` for the bookkeeping only (one integral condition, one freed parameter)."""
+
+    kind = "phase"
+    frees = "w"
+    ends = (1,)
+    #: the jet rows its integrand reads besides those of the residual: the deflections themselves
+    integral_jets = "deflection"
+
+    def terms(self, model, end):
+        return []
+
+    def integrand(self, model, S, z, p):
+        from .rod import Jet
+        g = np.asarray(model.gK, float)
+        return z[Jet.D1[0]] * g[0] + z[Jet.D2[0]] * g[1]
+
+
+@dataclass(frozen=True)
 class UnstressedLength(EndCondition):
     """The rod's unstressed length fixed, ``int_0^L n / alpha dS = l0`` (parameter ``l0``); the tension
     ``T = F . K3(L)`` is an unknown, read from the solution."""
@@ -147,7 +176,7 @@ class UnstressedLength(EndCondition):
 def _check_condition(c, end):
     if not isinstance(c, EndCondition):
         raise TypeError(f"an end condition must be a rodcont.ends.EndCondition (Clamp(), Rotation(), Torque(M), "
-                        f"Tension(), UnstressedLength(l0)), got {c!r}")
+                        f"Tension(), UnstressedLength(l0), Phase()), got {c!r}")
     if end not in c.ends:
         raise ValueError(f"{type(c).__name__} is available at S = L only (the rotation datum phi = 0 and the "
                          f"clamp are at S = 0)")
@@ -196,7 +225,7 @@ class RodEnds:
     @property
     def conditions(self) -> list:
         """``(end, condition)`` in the order of the rows: positions, twists, axial; start before end."""
-        order = ("position", "twist", "axial")
+        order = ("position", "twist", "axial", "phase")
         return [(end, c) for kind in order for end, conds in enumerate((self.start, self.end))
                 for c in conds if c.kind == kind]
 

@@ -86,8 +86,8 @@ class ErrorEstimator:
 
     * ``problem.error_quantities(x, p) -> (values, scales)``: named scalars of the solution
       (1-D arrays); the change of each is divided by its scale at the richer solution;
-    * the parameter: its change divided by ``max(|p|, 1)`` (the change itself is kept as
-      ``parameter_change``: at a fold, how far the fold moves);
+    * the parameter: its change divided by ``max(|p|, up)``, ``up`` its unit (``unit_scale``; 1 without one; the
+      change itself is kept as ``parameter_change``: at a fold, how far the fold moves);
     * ``problem.error_fields() -> [(field, scale), ...]``: fields whose values on ``samples``
       points per subinterval are compared (max change over the points, divided by the scale).
 
@@ -118,6 +118,25 @@ class ErrorEstimator:
         self._fields = [(coarse.evaluation_matrix(self.S, i), fine.evaluation_matrix(self.S, i), float(scale))
                         for i, scale in fields]
 
+    def _border_weights(self, n: int):
+        """The border ``0.5 / n / ux^2``, ``0.5 / up^2`` in the problem's own units (``unit_scale``, else
+        ``arclength_scale``; 1 without either): the hyperplane the richer problem is solved on is then the same in
+        any units (with the raw ``0.5 / n`` the first estimate of Gamma = 1 read 4.690e-7 or 4.717e-7 with
+        lengths x 10, and the meshes parted)."""
+        scale = getattr(self.fine, "unit_scale", None) or getattr(self.fine, "arclength_scale", None)
+        if scale is None:
+            return 0.5 / n, 0.5
+        sx, sp = scale()
+        return 0.5 / n / np.asarray(sx, float) ** 2, 0.5 / float(sp) ** 2
+
+    @property
+    def _parameter_unit(self) -> float:
+        """The parameter's own unit (``unit_scale``, else its arclength scale; 1 without either): the floor of
+        ``|p|`` in the relative change of the parameter (an absolute 1 read a trace in T differently in other force
+        units)."""
+        scale = getattr(self.system, "unit_scale", None) or getattr(self.system, "arclength_scale", None)
+        return float(scale()[1]) if scale is not None else 1.0
+
     def estimate(self, x: np.ndarray, value: float, tangent: tuple | None = None) -> float:
         """Estimated error of the solution ``x`` at parameter ``value``.
 
@@ -138,8 +157,8 @@ class ErrorEstimator:
                 dx, dp = LU(J).solve(-F), 0.0
             else:
                 tx = self._to_fine(np.asarray(tangent[0], float))
-                n = tx.size
-                A = bordered(J, Fp, 0.5 / n * tx, 0.5 * float(tangent[1]))
+                wx, wp = self._border_weights(tx.size)
+                A = bordered(J, Fp, wx * tx, wp * float(tangent[1]))
                 # a fill-reducing column order: in natural order a heavy rod pressed on a stiff wall
                 # (rows of J up to 2.5e12) drew the dense border row into the pivots again and again, and
                 # this factorisation at 21 035 unknowns filled 146 times J's nonzeros (about 2 GB and 10 s
@@ -153,7 +172,7 @@ class ErrorEstimator:
         qc, _ = sysc.error_quantities(x, value)
         qf, scales = sysf.error_quantities(xf2, pf)
         errs = list(np.abs(np.asarray(qf, float) - np.asarray(qc, float)) / np.asarray(scales, float))
-        errs.append(abs(dp) / max(abs(value), 1.0))
+        errs.append(abs(dp) / max(abs(value), self._parameter_unit))
         for Ec, Ef, scale in self._fields:
             errs.append(float(np.max(np.abs(Ef @ xf2 - Ec @ x))) / scale)
         if self.watch and hasattr(sysc, "watched_quantities"):

@@ -287,6 +287,7 @@ class EulerianRod:
         self.ends = RodEnds() if ends is None else ends
         if not isinstance(self.ends, RodEnds):
             raise TypeError(f"ends must be a rodcont.ends.RodEnds, got {self.ends!r}")
+        self._check_phase()
         extra = self.ends.params
         self.param_names = PARAMS + tuple(name for name, _ in extra)
         self._extra_values = dict(extra)
@@ -303,6 +304,19 @@ class EulerianRod:
             stations += list(load.stations(*self.interval))
         self.stations = np.unique(np.asarray(stations, float))
         self._set_problem([j for j in range(Jet.SIZE) if j not in unused])
+
+    def _check_phase(self) -> None:
+        """A phase condition (:class:`rodcont.ends.Phase`) is for the weightless rod on the straight reference, its
+        freed weight across the axis."""
+        from .ends import Phase
+        if self.ends.find(Phase) is None:
+            return
+        g = np.asarray(self.rod.weight_direction, float)
+        if not getattr(self.curve, "constant_frame", False) or self.rod.w != 0 or \
+                np.linalg.norm(g - (g @ self.curve.K3) * self.curve.K3) < 1e-6:
+            raise ValueError("a phase condition is for a weightless rod (w = 0) on the straight reference, with a "
+                             "weight direction across its axis (the freed weight's): there its buckled states "
+                             "come in circles")
 
     def _set_loads(self, loads, wall) -> None:
         """``self.loads`` (default ``[Weight()]``, a ``WallContact`` added for ``wall``), each bound to the rod."""
@@ -371,7 +385,9 @@ class EulerianRod:
         self.weight_only = self.constant_frame and [type(load) for load in self.loads] == [Weight]
         integrals = {}
         if self.ends.has_integrals:
-            integrals = dict(integrals=self.integrals, integral_dependence=dependence)
+            extra = [Jet.D1[0], Jet.D2[0]] if any(getattr(c, "integral_jets", "") == "deflection"
+                                                 for _, c in self.ends.conditions) else []
+            integrals = dict(integrals=self.integrals, integral_dependence=sorted(set(dependence) | set(extra)))
         self.problem = BVProblem(orders=ORDERS, residual=self.residual, bc=self.bc,
                                  interval=self.interval, params=self.param_names, names=FIELDS,
                                  free=[self.param_names.index(q) for q in self.ends.frees],
@@ -798,12 +814,36 @@ class EulerianRod:
         if breakpoints is None:
             if not (isinstance(N, (int, np.integer)) and N >= 1):
                 raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N!r}")
+            check_mesh_size(int(N), k)
             breakpoints = int(N)
             if self.stations.size > 2:
                 from .curves import mesh_through
                 breakpoints = mesh_through(self.stations, int(N), "pieces between the stations of the reference "
                                                                  "curve and the conduit's clearance")
+        else:
+            self._check_mesh(breakpoints, k)
         return Collocation(self.problem, breakpoints, k)
+
+    def _check_mesh(self, breakpoints, k) -> None:
+        """A given mesh spans the domain ``[0, curve.length]`` and holds every station (a well's, a clearance
+        table's): on another span it would solve another rod without a word (breakpoints ``0 .. 0.9`` of a span
+        of 1 put the Gamma = 1 fold at 12.824 instead of 13.09999)."""
+        b = np.asarray(breakpoints, float)
+        if b.ndim != 1 or b.size < 2 or not np.all(np.isfinite(b)):
+            raise ValueError("breakpoints must be a strictly increasing sequence of at least 2 finite values")
+        check_mesh_size(b.size - 1, k)
+        a, e = self.interval
+        tol = 1e-10 * (e - a)
+        if abs(b[0] - a) > tol or abs(b[-1] - e) > tol:
+            raise ValueError(f"the mesh must span the rod's domain [{a:.12g}, {e:.12g}] (the reference curve); its "
+                             f"breakpoints run from {b[0]:.12g} to {b[-1]:.12g}")
+        inner = self.stations[1:-1]
+        if inner.size:
+            gap = np.min(np.abs(inner[:, None] - b[None, :]), axis=1)
+            if np.any(gap > tol):
+                missing = inner[gap > tol]
+                raise ValueError(f"the mesh must have a breakpoint at every station of the reference curve and the "
+                                 f"conduit's clearance: {missing.size} missing, the first at S = {missing[0]:.12g}")
 
     def initial_guess(self, disc: Collocation, T: float) -> np.ndarray:
         """Straight untwisted rod; ``F`` carries ``T`` along the axis and the weight of a rod of length ``L``.
@@ -1053,6 +1093,30 @@ class _Outputs:
         Fmax = float(np.sqrt((z[Jet.F] ** 2).sum(axis=0)).max())
         return np.array([max(w, Fmax / L, EI / L**3)] * 3 + [max(Fmax, EI / L**2)] * 2
                         + [max(abs(p[0]), 1.0) / L**2])
+
+
+#: bytes a discretisation takes per unknown at k = 5 (the Jacobian, its LU and the evaluation matrices; measured
+#: 1.5 GB at N = 8000, 240 011 unknowns), scaled by (k + 3) / 8 for other k
+BYTES_PER_UNKNOWN = 6500.0
+
+
+def check_mesh_size(N: int, k: int) -> None:
+    """Refuse a mesh the machine cannot hold (``ValueError``, one line): ``N`` subintervals of ``k`` Gauss points
+    need about ``BYTES_PER_UNKNOWN (k + 3)/8`` bytes for each of their ``6 N k + 11`` unknowns (``N = 10^9`` would
+    take petabytes; ``critical_twists(N_fine=10^7)`` ran to 10 GB before it was stopped)."""
+    need = BYTES_PER_UNKNOWN * (int(k) + 3) / 8.0 * (6.0 * int(N) * int(k) + 11.0)
+    have = _physical_memory()
+    if need > have:
+        raise ValueError(f"a mesh of N = {int(N)} subintervals (k = {int(k)}) needs about {need / 2**30:.3g} GiB, "
+                         f"more than this machine's {have / 2**30:.3g} GiB")
+
+
+def _physical_memory() -> float:
+    import os
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE")) * float(os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 16.0 * 2**30
 
 
 def _untile(S):

@@ -1,8 +1,13 @@
 """Stability of rod equilibria: the number of unstable modes, counted two independent ways.
 
-Controls are those of a trace: end rotation ``Phi`` imposed (``phi(L) = Phi``),
-axial force ``F . K3 = T`` imposed at ``S = L``, unstressed length ``l0`` free
-(self-feeding). Two methods:
+Controls are those of the system's own end conditions (:mod:`rodcont.ends`): by
+default end rotation ``Phi`` imposed (``phi(L) = Phi``), axial force ``F . K3 = T``
+imposed at ``S = L``, unstressed length ``l0`` free (self-feeding); under a prescribed
+torque the end rotation is free (its row ``m(L) = M``, its unknown ``phi_L``), under a
+prescribed unstressed length ``T`` is an unknown and ``l0`` an integral row. Those rows
+carry no inertia, so the count follows the controls in force (tests/test_controls.py:
+Maddocks' rule, the torque maximum under torque control, the Phi fold under rotation
+control, on the Gamma = 1 branch). Two methods:
 
 * :func:`unstable_modes` (method 1) counts the unstable eigenvalues of the
   linearised dynamics, a generalised eigenproblem ``J v = lambda B v`` of the
@@ -329,7 +334,7 @@ def _params(system, phi_L: float) -> np.ndarray:
 # --------------------------------------------------------------------------
 def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "auto", k: int = 8,
              shift: float = SHIFT, torsional_inertia: float = 0.0, axial_row: bool = True,
-             J=None) -> Spectrum:
+             J=None, params=None) -> Spectrum:
     """Eigenvalues of the linearised dynamics near the origin and the number of unstable modes.
 
     ``system``: a :class:`rodcont.system.RodSystem` (or anything with ``disc``,
@@ -341,11 +346,18 @@ def spectrum(system, x, phi_L: float, *, tol: float = NULL_TOL, method: str = "a
     reduced problem of at most 60). ``tol``: the null band. ``J``: the
     Jacobian at ``(x, phi_L)`` if already made (saves about a fifth of the
     cost). ``torsional_inertia``, ``axial_row``: see :func:`inertia_factors`
-    (they change the eigenvalues, not the counts).
+    (they change the eigenvalues, not the counts). ``params``: the whole parameter vector (default
+    ``system``'s at ``phi_L``).
+
+    The controls are those of ``system``'s end conditions: ``J`` is its Jacobian, so under a prescribed
+    torque (:class:`rodcont.ends.Torque`) the end rotation is free (its row is ``m(L) = M``, its unknown
+    ``phi_L``), under a prescribed unstressed length the tension is an unknown and ``l0`` a constraint
+    (an integral row). Neither row carries inertia (``B`` has rows only at the collocation points' force
+    equations); the count is then that of the system with those controls.
     """
     if method not in ("auto", "dense", "arnoldi"):
         raise ValueError(f"method must be auto, dense or arnoldi, got {method!r}")
-    p = _params(system, phi_L)
+    p = _params(system, phi_L) if params is None else np.asarray(params, float)
     disc = system.disc
     if J is None:
         _, J, _ = disc.linearise(np.asarray(x, float), p)
@@ -392,6 +404,10 @@ def _unknown_scales(system, p) -> np.ndarray:
     d = np.ones(disc.size)
     for field, unit in ((0, L), (1, L), (3, float(p[3]) / L**2), (4, float(p[3]) / L**2), (5, float(p[3]) / L**2)):
         d[disc.index[field]] = unit
+    names = getattr(system.model, "param_names", ())
+    for j, q in zip(disc.free_index, disc.problem.free):  # a freed T (length control) is a force
+        if q < len(names) and names[q] == "T":
+            d[j] = float(p[3]) / L**2
     return d
 
 

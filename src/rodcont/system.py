@@ -42,30 +42,100 @@ class RodSystem:
     """The discretised rod as a one-parameter problem ``F(x, q) = 0`` for the tracker.
 
     ``param`` names the continuation parameter (default ``phi_L``); every other
-    entry of ``(phi_L, T, w, EI, GJ, EA)`` is held at ``base``. With
-    ``param = "gamma"`` the tension follows ``T = gamma w L``.
+    entry of the model's parameters (``phi_L, T, w, EI, GJ, EA`` and those the end
+    conditions add: ``torque``, ``l0``) is held at ``base``. With ``param = "gamma"``
+    the tension follows ``T = gamma w L``.
+
+    ``ends`` (:class:`rodcont.ends.RodEnds`, default the canonical clamps with ``Phi`` and ``T``
+    imposed): under :class:`rodcont.ends.Torque` ``phi_L`` is an unknown (the last entries of ``x``,
+    ``disc.full_params`` reads it), under :class:`rodcont.ends.UnstressedLength` ``T`` is; neither can
+    then be the continued parameter. ``T`` under length control is only the first guess (default the
+    straight rod's, ``EA (L/l0 - 1)``). A solution is stored without those entries (:meth:`stored`: the
+    fields' coefficients, the same layout under every control) and read back by :meth:`expanded`.
     """
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
-                 curve=None, wall=None):
-        if param not in SYSTEM_PARAMS:
-            raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
+                 curve=None, wall=None, ends=None):
+        from .ends import RodEnds, UnstressedLength
+        ends = RodEnds() if ends is None else ends
+        if not isinstance(ends, RodEnds):
+            raise TypeError(f"ends must be a rodcont.ends.RodEnds, got {ends!r}")
+        allowed = tuple(q for q in SYSTEM_PARAMS + tuple(name for name, _ in ends.params)
+                        if q not in ends.frees and not (q == "gamma" and "T" in ends.frees))
+        if param not in allowed:
+            freed = [q for q in ends.frees if q == param or (param == "gamma" and q == "T")]
+            raise ValueError(f"{param} is solved for under these end conditions: it cannot be continued" if freed
+                             else f"param must be one of {', '.join(allowed)}, got {param!r}")
         if T is None:
-            if gamma is None:
+            length = ends.find(UnstressedLength)
+            if gamma is None and length is None:
                 raise ValueError("give gamma or T")
-            T = rod.tension(gamma)
+            T = rod.tension(gamma) if gamma is not None else rod.EA * (rod.L / length.l0 - 1.0)
         if param == "gamma" and rod.w == 0:
             raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
         self.rod = rod
-        self.model = EulerianRod(rod, curve, wall)
+        self.model = EulerianRod(rod, curve, wall, ends=ends)
+        self.ends = ends
         self.wall = wall
         self.curve = self.model.curve
         self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
         self.base = self.model.params(phi_L, T=T)
         self.param = param
-        self.index = PARAMS.index("T" if param == "gamma" else param)
+        self.index = self.model.param_names.index("T" if param == "gamma" else param)
         self.scale = rod.w * rod.L if param == "gamma" else 1.0  # d(entry)/dq
+
+    # ---- the controls: parameters solved for, and a solution's stored layout ---------------
+    @property
+    def freed(self) -> tuple:
+        """The parameters the end conditions make unknowns (``phi_L`` under a torque, ``T`` under ``l0``)."""
+        return tuple(self.ends.frees)
+
+    def free_position(self, name: str) -> int:
+        """Where the freed parameter ``name`` sits in ``x``."""
+        return int(self.disc.free_index[self.freed.index(name)])
+
+    def stored(self, x) -> np.ndarray:
+        """``x`` (a solution or a tangent) without the freed parameters: the fields' coefficients, the layout a
+        branch stores under every control (the freed values are columns of the table)."""
+        x = np.asarray(x, float)
+        return x[:self.disc.size - self.disc.n_free] if x.size == self.disc.size else x
+
+    def expanded(self, x, tangent: bool = False) -> np.ndarray:
+        """A stored solution (or, ``tangent``, a tangent) with the freed parameters appended, read from the
+        fields at ``S = L``: ``phi_L = phi(L) + beta`` (the frame's turn), ``T = F . K3(L)``."""
+        x = np.asarray(x, float)
+        if x.size == self.disc.size or not self.disc.n_free:
+            return x
+        from .rod import Jet
+        full = np.append(x, np.zeros(self.disc.n_free))
+        zb = self.disc.end_jets(full)[1]
+        # (a phase condition's freed weight is 0 on every equilibrium of the symmetric rod)
+        read = {"phi_L": zb[Jet.PHI[0]] + (0.0 if tangent else self.model.twist_offset), "T": zb[Jet.F[2]], "w": 0.0}
+        full[self.disc.free_index] = [read[name] for name in self.freed]
+        return full
+
+    def without_phase(self) -> "RodSystem":
+        """The same rod, mesh and parameters without a phase condition (:class:`rodcont.ends.Phase`): the physical
+        controls, whose Jacobian is singular on the circles of buckled states (the stability count reads it:
+        the rotation's null eigenvalue is not counted). ``self`` when there is none; cached per mesh."""
+        from .ends import Phase, RodEnds
+        if self.ends.find(Phase) is None:
+            return self
+        key = (self.disc.k, self.disc.breakpoints.tobytes(), tuple(self.base))
+        cached = self.__dict__.get("_unphased")
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        ends = RodEnds(start=self.ends.start, end=tuple(c for c in self.ends.end if not isinstance(c, Phase)))
+        other = RodSystem(self.rod, T=float(self.base[1]), k=self.disc.k, breakpoints=self.disc.breakpoints,
+                          param=self.param, curve=self.curve, wall=self.wall, ends=ends)
+        other.base = self.base.copy()
+        self._unphased = (key, other)
+        return other
+
+    def full_params(self, x, value) -> np.ndarray:
+        """Every parameter at ``(x, value)``, the freed ones read from ``x``."""
+        return self.disc.full_params(self.expanded(x), self.params(value))
 
     @property
     def gamma(self) -> float:
@@ -107,13 +177,16 @@ class RodSystem:
         self.base = np.array(base, float)
 
     def error_quantities(self, x, value):
-        """What the error estimate compares, with its scales: the stretch, ``l0`` (scale ``L``) and
-        the torque (scale ``max(|torque|, EI/L)``)."""
+        """What the error estimate compares, with its scales: the stretch, ``l0`` (scale ``L``), the torque
+        (scale ``max(|torque|, EI/L)``) and the parameters solved for (``phi_L`` by one radian, ``T`` by the
+        arclength's force scale)."""
         p = self.params(value)
         o = self.model.outputs(self.disc, x, p)
         L = self.rod.L
-        return ((o["stretch"], o["l0"], o["torque"]),
-                (1.0, L, max(abs(o["torque"]), float(p[3]) / L)))
+        pf = self.disc.full_params(x, p)
+        freed = [(float(pf[self.model.param_names.index(q)]), self._free_unit(q)) for q in self.freed]
+        return ((o["stretch"], o["l0"], o["torque"], *(v for v, _ in freed)),
+                (1.0, L, max(abs(o["torque"]), float(p[3]) / L), *(u for _, u in freed)))
 
     def error_fields(self):
         """The fields the error estimate compares point by point: the deflections, on the scale ``L``."""
@@ -151,17 +224,20 @@ class RodSystem:
         return self.linearise(x, value)[1:]
 
     def outputs(self, x, value) -> dict:
-        p = self.params(value)
+        p = self.disc.full_params(x, self.params(value))
         o = self.model.outputs(self.disc, x, p)
         out = dict(phi_L=float(p[0]), stretch=o["stretch"], torque=o["torque"], l0=o["l0"],
                    helical_waves=o["helical_waves"], min_alignment=o["min_alignment"],
                    defect=o["defect"], torque_spread=o["torque_spread"], alpha_min=o["alpha_min"])
+        if "T" in self.freed:
+            out["T"] = float(p[1])
         if self.param != "phi_L":
             out[self.param] = float(value)
         if self.wall is not None:
             c = self.model.contact(self.disc, x, p)
             out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
-                       max_pressure=float(c["pressure"].max()))
+                       max_pressure=float(c["pressure"].max()),
+                       penetration=float(np.max(-c["gap"] / self.wall.clearance_at(c["S"]))))
         return out
 
     def arclength_scale(self):
@@ -169,23 +245,58 @@ class RodSystem:
         the same in any units: the deflections by ``L``, the twist by one radian, the forces by
         ``max(|T|, w L, EI / L^2)``; the parameter by its own size (one radian for ``phi_L``)."""
         rod = self.rod
-        T = float(self.base[1])
-        fs = max(abs(T), rod.w * rod.L, rod.EI / rod.L**2)
+        fs = self._force_scale()
         sx = np.empty(self.disc.size)
         for i, s in enumerate((rod.L, rod.L, 1.0, fs, fs, fs)):
             sx[self.disc.index[i]] = s
+        for name, j in zip(self.freed, self.disc.free_index):
+            sx[j] = self._free_unit(name)
         sp = {"phi_L": 1.0, "T": fs, "gamma": max(abs(self.value()), 1.0), "w": max(rod.w, rod.EI / rod.L**3),
-              "EI": rod.EI, "GJ": rod.GJ, "EA": rod.EA}[self.param]
+              "EI": rod.EI, "GJ": rod.GJ, "EA": rod.EA, "torque": rod.EI / rod.L, "l0": rod.L}[self.param]
         return sx, sp
+
+    def unit_scale(self):
+        """The rod's own units of the unknowns and of the parameter, from its span ``L`` and bending stiffness
+        ``EI`` alone: deflections ``L``, the twist a radian, forces ``EI/L^2`` (a freed ``T`` too, a phase
+        condition's weight ``EI/L^3``); the parameter likewise (``phi_L`` 1, ``T`` and ``EA`` ``EI/L^2``, ``w``
+        ``EI/L^3``, ``EI`` and ``GJ`` ``EI``, ``torque`` ``EI/L``, ``l0`` ``L``, ``gamma`` 1). What the corrector's
+        and Newton's convergence tests and the error estimate's hyperplane measure in: the same in any consistent
+        units, and exactly 1 for the paper's rod (``L = EI = 1``), whose results are then those of the raw
+        unknowns bit for bit (the arclength's own scales, :meth:`arclength_scale`, are not 1 there)."""
+        rod = self.rod
+        L, EI = rod.L, rod.EI
+        force = EI / L**2
+        sx = np.empty(self.disc.size)
+        for i, u in enumerate((L, L, 1.0, force, force, force)):
+            sx[self.disc.index[i]] = u
+        for name, j in zip(self.freed, self.disc.free_index):
+            sx[j] = {"phi_L": 1.0, "T": force, "w": force / L}[name]
+        sp = {"phi_L": 1.0, "T": force, "gamma": 1.0, "w": force / L, "EI": EI, "GJ": EI, "EA": force,
+              "torque": EI / L, "l0": L}[self.param]
+        return sx, sp
+
+    def _free_unit(self, name: str) -> float:
+        """The scale of a freed parameter: ``phi_L`` a radian, ``T`` the forces', a phase condition's weight theirs
+        per length."""
+        return {"phi_L": 1.0, "T": self._force_scale(), "w": self._force_scale() / self.rod.L}[name]
+
+    def _force_scale(self) -> float:
+        """``max(|T|, w L, EI / L^2)``: the forces' scale (``T`` of the base: the start's under length control)."""
+        rod = self.rod
+        return max(abs(float(self.base[1])), rod.w * rod.L, rod.EI / rod.L**2)
 
     def relative_change(self, x0, x1) -> float:
         """Change of the transverse deflection ``(Delta1, Delta2)`` relative to its size
         (:meth:`relative_correction` with the predictor at the step's start). A deflection that doubles
         reads 0.5; one that flips sign reads 2. Only for traces in ``phi_L`` (where a nearly
         symmetric rod passes close to other branches); other parameters, such as the weight
-        homotopy that grows a deflection from zero, read 0."""
+        homotopy that grows a deflection from zero, read 0; so does a step from the straight rod (a switch at a
+        critical twist), whose deflection grows from zero too."""
         if self.param != "phi_L":
             return 0.0
+        idx = self._transverse
+        if float(np.max(np.abs(x0[idx]))) <= 1e-12 * self.rod.L:
+            return 0.0  # from the straight rod (a switch at a critical twist): the deflection grows from zero
         return self.relative_correction(x0, x0, x1)
 
     def relative_correction(self, x0, x_pred, x1) -> float:
@@ -213,19 +324,32 @@ class RodSystem:
         from .curves import conform_to
         return np.asarray(conform_to(np.asarray(breakpoints, float), self.model.stations), float)
 
-    def straight_state(self, phi_L: float) -> np.ndarray:
-        """The exact straight state ``Delta = 0``, ``phi = phi_L S / L``, ``F = T K3`` (exact for ``w = 0``)."""
+    def straight_state(self, phi_L: float | None = None) -> np.ndarray:
+        """The exact straight state ``Delta = 0``, ``phi = phi_L S / L``, ``F = T K3`` (exact for ``w = 0``).
+
+        The controls in force decide what is given: ``T`` (or, under length control, ``T = EA (L/l0 - 1)``:
+        ``alpha = L / l0``) and ``phi_L`` (or, under torque control, ``phi_L = M L / (GJ alpha)``: the torque
+        ``GJ alpha phi_L / L``)."""
         if not self.straight:
             raise ValueError("the straight rod state exists only on the straight reference (--reference straight)")
-        L, T = self.rod.L, float(self.base[1])
+        rod, L = self.rod, self.rod.L
+        p = self.base
+        names = self.model.param_names
+        T = rod.EA * (L / float(p[names.index("l0")]) - 1.0) if "T" in self.freed else float(p[1])
+        if "phi_L" in self.freed:
+            phi_L = float(p[names.index("torque")]) * L / (rod.GJ * (1.0 + T / rod.EA))
+        elif phi_L is None:
+            phi_L = float(p[0])
         zero = lambda S: 0.0 * S  # noqa: E731
-        return self.disc.project([zero, zero, lambda S: phi_L * S / L, zero, zero, lambda S: 0.0 * S + T])
+        free = {"phi_L": phi_L, "T": T, "w": 0.0}
+        return self.disc.project([zero, zero, lambda S: phi_L * S / L, zero, zero, lambda S: 0.0 * S + T],
+                                 [free[name] for name in self.freed])
 
     def key(self) -> tuple:
         """What makes two systems the same discrete problem (for caches)."""
         return (tuple(self.base), self.param, self.disc.k, self.disc.breakpoints.tobytes(),
                 tuple(sorted(self.rod.as_dict().items())), getattr(self.curve, "spec", ""),
-                self.wall.spec if self.wall is not None else "")
+                self.wall.spec if self.wall is not None else "", self.ends)
 
 
 class RodSystem2:
@@ -236,6 +360,8 @@ class RodSystem2:
     """
 
     def __init__(self, one: RodSystem, param: str):
+        if not one.ends.is_default:
+            raise ValueError("fold curves are continued with Phi and T imposed (the canonical end conditions)")
         if param not in ("gamma", "T", "w", "EI", "GJ", "EA"):
             raise ValueError(f"param must be one of gamma, T, w, EI, GJ, EA, got {param!r}")
         if param == "gamma" and one.rod.w == 0:
@@ -301,11 +427,40 @@ def rod_at(rod: RodParameters, p: np.ndarray) -> RodParameters:
                          weight_direction=rod.weight_direction)
 
 
+def controls_spec(ends) -> dict:
+    """The end conditions of a rod as a file stores them (``controls`` attribute, JSON): ``twist`` (``rotation``
+    or ``torque``), ``axial`` (``tension`` or ``l0``) and the prescribed ``torque`` / ``l0`` values."""
+    from .ends import Phase, Torque, UnstressedLength
+    out = dict(twist="rotation", axial="tension")
+    if ends.find(Phase) is not None:
+        out["phase"] = True
+    torque, length = ends.find(Torque), ends.find(UnstressedLength)
+    if torque is not None:
+        out.update(twist="torque", torque=float(torque.M))
+    if length is not None:
+        out.update(axial="l0", l0=float(length.l0))
+    return out
+
+
+def ends_from_spec(spec):
+    """The :class:`rodcont.ends.RodEnds` of a ``controls`` attribute (a dict or its JSON; empty: the canonical ends)."""
+    import json
+    from .ends import Clamp, Phase, RodEnds, Rotation, Tension, Torque, UnstressedLength
+    if isinstance(spec, (str, bytes)):
+        spec = json.loads(spec) if spec else {}
+    spec = dict(spec or {})
+    twist = Torque(float(spec.get("torque", 0.0))) if spec.get("twist") == "torque" else Rotation()
+    axial = UnstressedLength(float(spec["l0"])) if spec.get("axial") == "l0" else Tension()
+    return RodEnds(end=(Clamp(), twist, axial) + ((Phase(),) if spec.get("phase") else ()))
+
+
 _POINT_SYSTEMS: dict = {}
 
 
 def point_system(data, i) -> RodSystem:
-    """The :class:`RodSystem` a stored point ``i`` of a loaded branch lives on (its own mesh).
+    """The :class:`RodSystem` a stored point ``i`` of a loaded branch lives on (its own mesh), with ``Phi`` and
+    ``T`` imposed at the point's values (a point stored under other controls is the same equilibrium: its
+    coefficients are stored without the freed parameters, :meth:`RodSystem.stored`, and its ``T`` is a column).
 
     Cached by content (rod, tension, mesh, k), never by file name: a file
     rewritten with another rod gets another system.
@@ -316,7 +471,7 @@ def point_system(data, i) -> RodSystem:
     param = data.param
     if param in ("EI", "GJ", "EA", "w") and param in pt:  # a trace in a rod parameter: the point's own value
         rod = RodParameters(**dict(rod.as_dict(), **{param: float(pt[param])}))
-    elif param == "T" and "T" in pt:
+    if "T" in pt:  # a trace in T, or one under length control (T solved for at each point)
         T = float(pt["T"])
     elif param == "gamma" and "gamma" in pt:
         T = float(pt["gamma"]) * rod.w * rod.L
@@ -329,7 +484,7 @@ def point_system(data, i) -> RodSystem:
         _POINT_SYSTEMS[key] = RodSystem(rod, T=T, N=b.size - 1, k=int(data.attrs["k"]), breakpoints=b,
                                         curve=data.curve, wall=data.wall)
     system = _POINT_SYSTEMS[key]
-    if data.param == "phi_L" or "phi_L_fixed" not in data.attrs:
+    if data.param == "phi_L" or ("phi_L_fixed" not in data.attrs and data.param != "torque"):
         return system
     out = RodSystem.__new__(RodSystem)  # a trace at fixed phi_L: that phi_L in the base
     out.__dict__.update(system.__dict__)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..branch import Branch
 from ..continuation import Kind, Point
@@ -52,16 +53,24 @@ from .trace import Recorder, TraceError, TraceOptions, _mesh_group, file_meta, r
 # Critical twists
 # --------------------------------------------------------------------------
 def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: float = 40.0, phi_min: float = 0.0,
-                    k: int = 5, N_fine: int = 60) -> list[float]:
-    """Twists ``Phi_n`` in ``(phi_min, phi_max]`` where the straight weightless rod under tension ``T`` buckles.
+                    k: int = 5, N_fine: int = 60, *, l0: float | None = None) -> list[float]:
+    """Twists ``Phi_n`` in ``(phi_min, phi_max]`` where the straight weightless rod under tension ``T`` buckles
+    (or, with ``l0``, the rod of that unstressed length: under length control, ``T`` solved for).
 
     From the tangent operator of the discretised rod along the exact straight
-    state (the rod's stiffnesses, its weight set to 0). Coarse roots: the real
+    state (the rod's stiffnesses, its weight set to 0; its own end conditions: under length control the
+    tension is an unknown and ``l0`` a constraint). Coarse roots: the real
     finite eigenvalues of the pencil ``(A, -B)`` on ``N = max(8, phi_max/4)``
     subintervals; each refined by inverse iteration with the shift at the
     coarse value on ``N_fine`` subintervals, to about 1e-12 relative.
     """
+    from .trace import trace_ends
     rod = rod or RodParameters()
+    ends = None
+    if l0 is not None:
+        l0 = check_number("l0", l0, positive=True)
+        ends = trace_ends(l0=l0)
+        T = rod.EA * (rod.L / l0 - 1.0)  # the straight rod's, alpha = L / l0
     T = check_number("T", T)
     phi_max, phi_min = check_number("phi_max", phi_max), check_number("phi_min", phi_min)
     if not phi_min < phi_max:
@@ -69,12 +78,18 @@ def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: 
     if max(abs(phi_max), abs(phi_min)) > 200.0:
         raise ValueError("critical twists are computed up to |phi| = 200 rad (a dense eigenproblem on a mesh "
                          "that resolves them); choose a smaller window")
+    N_fine = check_number("N_fine", N_fine, integer=True)
+    k = check_number("k", k, integer=True)
+    if N_fine < 1:
+        raise ValueError(f"N_fine (subintervals of the refining mesh) must be an integer >= 1, got {N_fine}")
     weightless = RodParameters(EI=rod.EI, GJ=rod.GJ, EA=rod.EA, w=0.0, L=rod.L,
                                weight_direction=rod.weight_direction)
     check_tension(weightless, T)
+    if _none_below(weightless, T, max(abs(phi_max), abs(phi_min))):
+        return []
     import scipy.linalg as sl
     N0 = max(8, int(math.ceil(max(abs(phi_max), abs(phi_min)) / 4)))
-    coarse = _pencil(weightless, T, N0, k)
+    coarse = _pencil(weightless, T, N0, k, ends)
     A, B = (M.toarray() for M in coarse)
     with np.errstate(all="ignore"):
         ev = sl.eigvals(A, -B)
@@ -85,7 +100,7 @@ def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: 
     for v in ev:  # O(2): each root twice; keep one per cluster
         if not roots or abs(v - roots[-1]) > 1e-5 * (1 + abs(v)):
             roots.append(v)
-    Af, Bf = _pencil(weightless, T, max(N_fine, 2 * N0), k)
+    Af, Bf = _pencil(weightless, T, max(N_fine, 2 * N0), k, ends)
     out = []
     for r in roots:
         phi = _refine(Af, Bf, float(r))
@@ -94,12 +109,41 @@ def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: 
     return sorted(out)
 
 
-def _pencil(rod: RodParameters, T: float, N: int, k: int):
-    """``A, B`` with ``J(Phi) = A + Phi B`` along the straight state (exact: the residual is affine in Phi there)."""
-    s = RodSystem(rod, T=T, N=N, k=k)
+#: the largest ratio |T| L^2 / EI of the tension's terms to the bending ones the pencil resolves: its roots lose
+#: those digits to rounding (1e-12 off up to 1e9; at 1e10 a root was missed, at 1e11 they were 6 rad off)
+MAX_TENSION_RATIO = 1e9
+
+
+def _none_below(rod: RodParameters, T: float, phi: float) -> bool:
+    """True where the straight rod has no critical twist up to ``phi`` (closed form, tests/closed_forms.py: roots
+    need ``mu^2 > 4 tau``, ``mu = GJ Phi / EI``, ``tau = T L^2 / (EI alpha)``, ``alpha = 1 + T / EA``); a tension
+    whose terms swamp the bending ones by more than :data:`MAX_TENSION_RATIO` is refused otherwise (``ValueError``):
+    ``critical --T 1e20`` printed 24.99 where the closed form has none below 42.6."""
+    tau = T * rod.L**2 / (rod.EI * (1.0 + T / rod.EA))
+    if tau > 0 and rod.GJ * phi / rod.EI <= 2.0 * math.sqrt(tau):
+        return True
+    if abs(T) * rod.L**2 / rod.EI > MAX_TENSION_RATIO:
+        raise ValueError(f"T = {T:.6g} is {abs(T) * rod.L**2 / rod.EI:.3g} times the bending stiffness EI/L^2: "
+                         f"the critical twists lose their digits to rounding beyond {MAX_TENSION_RATIO:g} (they "
+                         f"start at Phi = {2.0 * rod.EI * math.sqrt(max(tau, 0.0)) / rod.GJ:.6g})")
+    return False
+
+
+def _pencil(rod: RodParameters, T: float, N: int, k: int, ends=None, breakpoints=None):
+    """``A, B`` with ``J(Phi) = A + Phi B`` along the straight state (exact: the residual is affine in Phi there),
+    in the problem's own units: ``R A D, R B D`` with the unknowns by their scales (``D``: deflections by ``L``,
+    forces by ``EI/L^2``) and each row by its largest entry (``R``). The pencil's eigenvalues are the same; its
+    inverse iteration then converges alike in any units (on the raw pencil a critical twist came out 7e-8 off
+    with lengths x 1e-3 and forces x 1e6: tests/test_units.py)."""
+    from ..stability import _unknown_scales
+    s = RodSystem(rod, T=T, N=N, k=k, ends=ends, breakpoints=breakpoints)
     J0 = s.disc.linearise(s.straight_state(0.0), s.params(0.0))[1]
     J1 = s.disc.linearise(s.straight_state(1.0), s.params(1.0))[1]
-    return J0, (J1 - J0).tocsc()
+    D = sp.diags(_unknown_scales(s, s.params(0.0)))
+    A, B = (J0 @ D).tocsr(), ((J1 - J0) @ D).tocsr()
+    rows = np.maximum(abs(A).max(axis=1).toarray().ravel(), abs(B).max(axis=1).toarray().ravel())
+    R = sp.diags(1.0 / np.where(rows > 0, rows, 1.0))
+    return (R @ A).tocsc(), (R @ B).tocsc()
 
 
 def _refine(A, B, phi: float, iterations: int = 8) -> float:
@@ -257,6 +301,7 @@ class Diagram:
     attrs: dict = field(default_factory=dict)     # the root attributes of its file
     resumed: list = field(default_factory=list)   # complete branches of an interrupted run, not traced again
     tracing: tuple | None = None                  # (j, branch) being traced: an interrupt marks it in the file
+    ends: object = None                           # the end conditions (rodcont.ends.RodEnds) other than Phi, T
 
     @property
     def folds(self) -> Table:
@@ -270,11 +315,12 @@ class Diagram:
 
 
 def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
-            T: float | None = None, out: str | None = None, overwrite: bool = False,
+            T: float | None = None, l0: float | None = None, out: str | None = None, overwrite: bool = False,
             deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
             progress: Callable[[str], None] | None = None, meta: dict | None = None, store_every: int = 1,
             resumed: Sequence[DiagramBranch] = (), **options) -> Diagram:
-    """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``) in ``[phi_min, phi_max]``.
+    """The whole response diagram of the twisted heavy rod at ``gamma`` (or tension ``T``, or under length control
+    at the unstressed length ``l0``, the tension solved for at each point) in ``[phi_min, phi_max]``.
 
     ``options``: the fields of :class:`rodcont.drivers.trace.TraceOptions`,
     applied to every branch. ``deflate_at``: values of ``phi_L`` where
@@ -285,20 +331,27 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     """
     from .trace import _options
     opts = _options(options, "diagram()")
-    rod, T = _rod_and_tension(gamma, rod, T)
+    rod, T = _rod_and_tension(gamma, rod, T, l0)
+    ends = None
+    if l0 is not None:
+        from .trace import trace_ends
+        ends = trace_ends(l0=l0)
     N = check_number("N", N, integer=True)
     k = check_number("k", k, integer=True)
     deflate_at = tuple(check_number("deflate", v) for v in deflate_at)
+    if deflate_at and ends is not None:
+        raise ValueError("deflation (--deflate) works with the tension imposed, not under length control (--l0)")
     store_every = check_number("store_every", store_every, integer=True)
     if store_every < 1:
         raise ValueError(f"store_every must be >= 1, got {store_every}")
     t_start = time.perf_counter()
-    beyond = critical_twists(rod, T, phi_max=_beyond(opts.phi_max), phi_min=0.0, k=k)
+    beyond = critical_twists(rod, T, phi_max=_beyond(opts.phi_max), phi_min=0.0, k=k, l0=l0)
     crit = [c for c in beyond if c <= opts.phi_max]
     seeds = seed_twists(beyond, opts.phi_min, opts.phi_max)
     bopts = TraceOptions(**dict(opts.as_dict(), forced=tuple(sorted(set(opts.forced) | set(seeds) | set(deflate_at)))))
     dg = Diagram(gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=T, rod=rod, critical=crit, resumed=list(resumed))
-    dg.attrs = file_meta(rod, T, N, k, "phi_L", opts, RodSystem(rod, T=T, N=N, k=k),
+    dg.ends = ends
+    dg.attrs = file_meta(rod, T, N, k, "phi_L", opts, RodSystem(rod, T=T, N=N, k=k, ends=ends),
                          dict(kind="diagram", critical_twists=np.asarray(crit), seeds=np.asarray(seeds),
                               deflate_at=np.asarray(deflate_at), **(meta or {})))
     writer = None
@@ -311,7 +364,7 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         _mesh_group(writer, RodSystem(rod, T=T, N=N, k=k))
     note = progress or (lambda msg: None)
     try:
-        _trace_seeds(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note)
+        _trace_seeds(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note, ends)
         for phi in deflate_at:
             _trace_deflated(dg, rod, T, phi, N, k, opts, bopts, writer, callback, note)
         _drop_duplicates(dg, writer)
@@ -365,10 +418,16 @@ def _resumed_branch(dg: Diagram, origin: str, writer) -> DiagramBranch | None:
     return db
 
 
-def _rod_and_tension(gamma, rod, T):
+def _rod_and_tension(gamma, rod, T, l0=None):
     rod = rod or RodParameters()
     if not isinstance(rod, RodParameters):
         raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+    if l0 is not None:  # under length control: the straight rod's tension, a first guess
+        if gamma is not None or T is not None:
+            raise ValueError("give one of gamma, T and l0 (the tension, or the unstressed length that sets it)")
+        T = rod.EA * (rod.L / check_number("l0", l0, positive=True) - 1.0)
+        check_tension(rod, T, "the straight rod of this unstressed length has a tension that")
+        return rod, T
     if T is None:
         if gamma is None:
             raise ValueError("give gamma (T = gamma w L) or T")
@@ -403,10 +462,10 @@ def seed_twists(critical: Sequence[float], phi_min: float, phi_max: float) -> li
     return out
 
 
-def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback, note) -> None:
+def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback, note, ends=None) -> None:
     """The primary branch from the planar sag, then one branch per seed not on a known branch."""
     t0 = time.perf_counter()
-    system = RodSystem(rod, T=T, N=N, k=k)
+    system = RodSystem(rod, T=T, N=N, k=k, ends=ends)
     x0 = system.model.initial_guess(system.disc, system.base[1])
     db = _trace_both(system, x0, 0.0, bopts, "primary branch from the planar sag at phi_L = 0", writer, dg,
                      callback, both=False)
@@ -418,12 +477,12 @@ def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback
         origin = f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}"
         t0 = time.perf_counter()
         try:
-            sysw, xs = straight_seed(rod, T, phi, N, k)
+            sysw, xs = straight_seed(rod, T, phi, N, k, ends=ends)
         except TraceError as exc:
             dg.skipped.append((origin, str(exc)))
             note(f"  skipped {origin}: {exc}")
             continue
-        system = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints)
+        system = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints, ends=ends)
         on = _on_known_branch(dg, system, xs, phi)
         if on is not None:
             dg.skipped.append((origin, f"lies on branch {on}"))
@@ -469,7 +528,8 @@ def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: 
     j = len(dg.branches)
     branch = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
     dg.tracing = (j, branch)
-    group = writer.group(f"branches/{j}", attrs=dict(origin=origin)) if writer is not None else None
+    group = writer.group(f"branches/{j}", attrs=dict(origin=origin), extra_columns=_extra_columns(dg)) \
+        if writer is not None else None
     rec = Recorder(branch, writer, group)
     if both:
         down = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
@@ -492,6 +552,11 @@ def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: 
         writer.flush()
     dg.tracing = None  # complete: an interrupt from here on leaves it as it is
     return DiagramBranch(branch, origin, (branch.message_first, branch.message))
+
+
+def _extra_columns(dg: Diagram) -> tuple:
+    """A branch group's columns beyond the rod's: under length control the tension solved for at each point."""
+    return ("T",) if getattr(dg, "ends", None) is not None and "T" in dg.ends.frees else ()
 
 
 def _branch_attrs(writer, j: int, branch: Branch) -> None:
@@ -557,7 +622,7 @@ def _rewrite_groups(writer, dg: Diagram) -> None:
         del writer.f["branches"]
     writer.groups = {k_: v for k_, v in writer.groups.items() if not k_.startswith("branches/")}
     for j, db in enumerate(dg.branches):
-        group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin))
+        group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin), extra_columns=_extra_columns(dg))
         b = db.branch
         rec = Recorder(Branch(dg.gamma, dg.rod, b.N, b.k, attrs=b.attrs), writer, group)
         for i in range(len(b)):

@@ -48,6 +48,9 @@ def fold_curve(data, fold: int | str, param: str, lo: float, hi: float, out: str
     ds, ds_max = check_number("ds", ds, positive=True), check_number("ds_max", ds_max, positive=True)
     max_steps = check_number("max_steps", max_steps, integer=True)
     max_error = check_number("max_error", max_error, positive=True)
+    N_max = check_number("N_max", N_max, integer=True)
+    if N_max < 1:
+        raise ValueError(f"N_max (most subintervals) must be an integer >= 1, got {N_max}")
     if not lo < hi:
         raise ValueError("the range must be given as A B with A < B")
     if ds > ds_max:

@@ -247,14 +247,9 @@ def first_mesh(rod: RodParameters, T: float, curve=None, wall=None, N_max: int =
 
 
 def _system(rod, controls: _Controls, N: int, k: int, curve, wall, breakpoints=None) -> RodSystem:
-    """The rod system with the controls' end conditions (RodSystem builds the canonical ends: the model is
-    rebuilt with these when they differ)."""
-    sysm = RodSystem(rod, T=controls.T, N=N, k=k, curve=curve, wall=wall, breakpoints=breakpoints)
-    ends = controls.ends()
-    if not ends.is_default:
-        from ..rod import EulerianRod
-        sysm.model = EulerianRod(rod, sysm.curve, wall, ends=ends)
-        sysm.disc = sysm.model.discretise(N, k, breakpoints=breakpoints)
+    """The rod system with the controls' end conditions, in the loaded control (``phi_L`` or ``torque``)."""
+    sysm = RodSystem(rod, T=controls.T, N=N, k=k, curve=curve, wall=wall, breakpoints=breakpoints,
+                     ends=controls.ends(), param=controls.load_name)
     sysm.base = sysm.model.params(0.0, T=controls.T)
     return sysm
 
@@ -526,3 +521,65 @@ def first_unstable_tension(rod: RodParameters, stable, unstable: float, N: int =
         else:
             lo = mid
     return hi, n
+
+
+def write_equilibrium(eq: Equilibrium, out: str, overwrite: bool = False, meta: dict | None = None,
+                      max_error: float = 1e-6) -> None:
+    """``eq`` as a one-point branch file (``solve --out``): the point as a trace stores it (its coefficients without
+    the parameters the controls freed, ``phi_L`` and ``T`` in its columns, the error estimate and, on the straight
+    reference, the unstable modes under the controls in force), its mesh, the rod, the conduit as solved (its
+    force scale) and the controls (``controls``: what was prescribed; a restart keeps them), and the unit tangent
+    of the branch in ``phi_L`` at ``T`` through it (a restart's direction). ``export``, ``shape`` and
+    ``trace --start F.h5:0`` read it as any branch file; ``max_error`` the guard it was solved to (a restart's
+    default)."""
+    from ..branch import CONTACT_COLUMNS, Branch
+    from ..branchfile import BranchWriter, check_output
+    from ..continuation import Kind, Point
+    from ..result import Status
+    from ..system import controls_spec
+    from .trace import Recorder, StabilityCount, TraceOptions, _ContactRows, _mesh_group, file_meta
+    import json
+    sysm, o = eq.system, eq.outputs
+    T, phi = float(o["T"]), float(o["phi_L"])
+    canon = RodSystem(sysm.rod, T=T, k=sysm.disc.k, breakpoints=sysm.disc.breakpoints, curve=sysm.curve,
+                      wall=sysm.wall, phi_L=phi)
+    x = sysm.stored(eq.x)
+    opts = TraceOptions(max_error=max_error)  # the guard it met (a restart's, unless given)
+    attrs = file_meta(sysm.rod, T, canon.disc.N, canon.disc.k, "phi_L", opts, canon,
+                      dict(meta or {}, solved="one equilibrium (rodcont solve)",
+                           controls=json.dumps(controls_spec(sysm.ends))))
+    check_output(out, overwrite=overwrite)
+    data = dict(canon.outputs(x, phi), error=eq.error)
+    pt = Point(x=x, p=phi, tx=np.zeros(x.size), tp=0.0, kind=Kind.START, data=data)
+    pt.tx, pt.tp = _tangent_in_phi(canon, x, phi)
+    # under the controls in force (a torque leaves the rotation free); -1 off the straight reference
+    pt.data["unstable_modes"] = StabilityCount().count(sysm, eq.x, sysm.value()) if canon.straight else -1
+    branch = Branch(sysm.rod.gamma(T) if sysm.rod.w > 0 else math.nan, sysm.rod, canon.disc.N, canon.disc.k,
+                    attrs=attrs, curve=canon.curve, wall=canon.wall)
+    writer = BranchWriter(out, attrs)
+    group = writer.group("/", extra_columns=CONTACT_COLUMNS if canon.wall is not None else ())
+    _mesh_group(writer, canon)
+    contact = _ContactRows(canon) if canon.wall is not None else None
+    try:
+        Recorder(branch, writer, group, contact).add(pt, canon)
+        if contact is not None:
+            contact.fill(branch)
+            contact.write(writer)
+    finally:
+        writer.close("one equilibrium (rodcont solve)", Status.COMPLETE)
+
+
+def _tangent_in_phi(system: RodSystem, x: np.ndarray, phi: float) -> tuple[np.ndarray, float]:
+    """The unit tangent (the tracker's arclength) of the branch in ``phi_L`` through ``(x, phi)``; zero where the
+    Jacobian at fixed ``phi_L`` is singular (a fold: a restart then starts along ``phi_L``)."""
+    from ..linalg import LU, SingularMatrix
+    _, J, Fp = system.linearise(x, phi)
+    try:
+        dx = LU(J).solve(-np.asarray(Fp, float))
+    except SingularMatrix:
+        return np.zeros(x.size), 0.0
+    sx, sp = system.arclength_scale()
+    norm = math.sqrt(0.5 / x.size * float(np.sum((dx / sx) ** 2)) + 0.5 / sp**2)
+    if not (math.isfinite(norm) and norm > 0):
+        return np.zeros(x.size), 0.0
+    return dx / norm, 1.0 / norm

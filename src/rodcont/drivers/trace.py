@@ -32,7 +32,7 @@ from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind
 from ..linalg import scaled_smallest_singular_value
 from ..result import Status
 from ..rod import RodParameters
-from ..system import SYSTEM_PARAMS, RodSystem, check_number
+from ..system import SYSTEM_PARAMS, RodSystem, check_number, controls_spec
 from .solve import check_tension
 
 __all__ = ["Accuracy", "Recorder", "StabilityCount", "TraceError", "TraceOptions", "ZoneChangeDetector", "run",
@@ -186,17 +186,16 @@ class StabilityCount:
         self.k = 8            # eigenvalues asked of ARPACK: the last count's (it grows along a branch)
 
     def count(self, system: RodSystem, x, value: float) -> int:
-        """Method 1 at one point of ``system`` (a trace in another parameter counted at fixed ``phi_L``)."""
+        """Method 1 at one point of ``system``, under its own end conditions (a stored solution, without the
+        freed parameters, is expanded first): with ``Phi`` imposed, or under a torque the rotation free."""
         from ..stability import spectrum
-        if system.param == "phi_L":
-            at, phi = system, value
-        else:  # the point's parameters as the base of a Phi-system (same controls)
-            at = RodSystem.__new__(RodSystem)
-            at.__dict__.update(system.__dict__)
-            at.base, at.param, at.index, at.scale = system.params(value), "phi_L", 0, 1.0
-            phi = float(at.base[0])
+        x = system.expanded(x)
+        p = system.params(value)
+        physical = system.without_phase()  # a phase condition fixes the turn only: counted without it
+        if physical is not system:
+            x, system = physical.expanded(system.stored(x)), physical
         try:
-            sp = spectrum(at, x, phi, k=self.k)
+            sp = spectrum(system, x, float(p[0]), k=self.k, params=p)
         except Exception as exc:  # noqa: BLE001 - an eigensolver failure is a missing count, said so
             raise RuntimeError(f"stability count failed at {system.param} = {value:.10g}: {exc}") from exc
         self.k = max(sp.k, 8)
@@ -256,7 +255,9 @@ class StabilityCount:
                       f"point(s): more eigenvalues crossed zero than were seen (the branch-point test watches a "
                       f"determinant's sign, which two crossings in one step leave unchanged); "
                       + ("here the rod is symmetric about its axis and its eigenvalues cross in pairs: a weight "
-                         "across the axis, however small, separates them" if _symmetric_about_axis(system) else
+                         "across the axis, however small, separates them (or, weightless, trace its buckled "
+                         "branches from the critical twists: from_critical, --from-critical)"
+                         if _symmetric_about_axis(system) else
                          "trace that interval with a smaller --ds-max to separate them; or the trace went on "
                          "along another branch close to its own (seen in T on a rod pressed on a wall, past a "
                          "branch point): a second trace with other steps shows which"),
@@ -307,20 +308,26 @@ class StabilityCount:
 # Starts
 # --------------------------------------------------------------------------
 def straight_seed(rod: RodParameters, T: float, phi_L: float, N: int = 15, k: int = 5,
-                  breakpoints=None) -> tuple[RodSystem, np.ndarray]:
+                  breakpoints=None, ends=None) -> tuple[RodSystem, np.ndarray]:
     """A solution of the heavy rod near the straight twisted state at ``phi_L`` (and tension ``T``).
 
     The weightless straight state is exact for every ``phi_L``; it is continued
     in ``w`` from 0 to the rod's weight at fixed ``phi_L`` and ``T``
     (pseudo-arclength, so a fold in ``w`` is passed; the homotopy must reach
     the rod's weight without leaving the Eulerian domain). Raises
-    :class:`TraceError` when it cannot.
+    :class:`TraceError` when it cannot. ``ends``: other end conditions (:class:`rodcont.ends.RodEnds`),
+    held during the homotopy (the unstressed length, or the torque, instead of ``T`` or ``phi_L``).
     """
-    sysw = RodSystem(rod, T=T, N=N, k=k, param="w", phi_L=phi_L, breakpoints=breakpoints)
+    if rod.w == 0:  # the straight state itself (under a phase condition w is an unknown: no homotopy in it)
+        sysw = RodSystem(rod, T=T, N=N, k=k, phi_L=phi_L, breakpoints=breakpoints, ends=ends,
+                         param="torque" if "phi_L" in getattr(ends, "frees", ()) else "phi_L")
+        return sysw, sysw.straight_state(phi_L)
+    sysw = RodSystem(rod, T=T, N=N, k=k, param="w", phi_L=phi_L, breakpoints=breakpoints, ends=ends)
     x0 = sysw.straight_state(phi_L)
-    if rod.w == 0:
-        return sysw, x0
-    s = ContinuationSettings(ds=0.2 * rod.w, ds_min=1e-9 * rod.w, ds_max=rod.w, p_min=-0.5 * rod.w, p_max=rod.w,
+    # steps in units of the dimensionless weight W = w L^3 / EI (in units of w they were 1e10 times too long or
+    # short in other units, tests/test_units.py; W = w for the paper's rod, L = EI = 1, as before)
+    W = rod.w * rod.L**3 / rod.EI
+    s = ContinuationSettings(ds=0.2 * W, ds_min=1e-9 * W, ds_max=W, p_min=-0.5 * rod.w, p_max=rod.w,
                              max_steps=400, detect_branch_points=False, detect_fold_pairs=False)
     guard = Event("left the Eulerian domain", lambda q: q.data["min_alignment"] - 0.05, stop=True)
     tr = Tracker(sysw, x0, 0.0, s, monitor=sysw.outputs, events=[guard])
@@ -365,7 +372,9 @@ class Recorder(ResultRecorder):
         self.thin = int(thin)
 
     def add(self, pt: Point, problem) -> int:
-        return self.add_row(self.branch.row(pt), pt.x, np.append(pt.tx, pt.tp), problem.breakpoints, pt.message)
+        # without the freed parameters (a torque's phi_L, a length's T: columns of the row), as every control stores
+        x, tx = (problem.stored(pt.x), problem.stored(pt.tx)) if hasattr(problem, "stored") else (pt.x, pt.tx)
+        return self.add_row(self.branch.row(pt), x, np.append(tx, pt.tp), problem.breakpoints, pt.message)
 
     def add_row(self, row: dict, solution, tangent, breakpoints, message: str = "") -> int:
         """Append one point by its row of values (a tracker point's, or a stored one's)."""
@@ -441,15 +450,36 @@ def run(system: RodSystem, x0: np.ndarray, p0: float, options: TraceOptions, tan
     stability = StabilityCount()
     stability.missed = branch.missed_crossings
     branch.settings["trace"] = o.as_dict()
+    watch = PenetrationWatch()
+    observers = [stability] + ([_phi_rate] if "phi_L" in system.freed else []) + \
+        ([watch] if system.wall is not None else [])
     engine = AdaptiveContinuation(system, x0, p0, settings, o.adaptive_settings(), tangent0=tangent0,
-                                  exact_start=exact, events=o.events(), detectors=_zone_detectors,
-                                  observers=[stability], recorder=recorder, callback=callback, hints=_RodHints(),
-                                  heap_trim_interval=TRIM_INTERVAL)
+                                  exact_start=exact, events=o.events() + _phi_bounds(system, o),
+                                  detectors=_zone_detectors, observers=observers, recorder=recorder,
+                                  callback=callback, hints=_RodHints(), heap_trim_interval=TRIM_INTERVAL)
     try:
         engine.run()
     except StartError as exc:
         raise TraceError(str(exc), exc.status) from None
+    if watch.crossed is not None:
+        branch.penetration_guard = list(watch.crossed)
+        warnings.warn(watch.message(system), RuntimeWarning, stacklevel=2)
     return branch
+
+
+def _phi_rate(system: RodSystem, pt: Point, recorder=None) -> None:
+    """Under a prescribed torque ``phi_L`` is an unknown: ``dphi_ds`` is its component of the tangent."""
+    pt.data["dphi_ds"] = float(pt.tx[system.free_position("phi_L")])
+
+
+def _phi_bounds(system: RodSystem, o: TraceOptions) -> list[Event]:
+    """Under a prescribed torque ``phi_L`` is solved for: ``phi_min``, ``phi_max`` bound it as events."""
+    if "phi_L" not in system.freed:
+        return []
+    return [Event(f"phi_L reached phi_max = {o.phi_max:g}", lambda q: o.phi_max - q.data["phi_L"], stop=True,
+                  label="phi_max", status=Status.BOUND),
+            Event(f"phi_L reached phi_min = {o.phi_min:g}", lambda q: q.data["phi_L"] - o.phi_min, stop=True,
+                  label="phi_min", status=Status.BOUND)]
 
 
 def _options(options: dict, where: str) -> TraceOptions:
@@ -459,8 +489,41 @@ def _options(options: dict, where: str) -> TraceOptions:
         raise TypeError(str(exc).replace("TraceOptions.__init__()", where)) from None
 
 
-def _rod_and_tension(gamma, rod, N, k, T, param, start):
-    """The checked rod, mesh size and tension of a trace (``ValueError``/``TypeError`` naming the input)."""
+TRACE_PARAMS = SYSTEM_PARAMS + ("torque", "l0")
+
+
+def trace_ends(l0=None, torque=None, param: str = "phi_L", phase: bool = False):
+    """The end conditions of a trace (:class:`rodcont.ends.RodEnds`): the unstressed length ``l0`` prescribed
+    (``T`` solved for), a torque prescribed (``torque``: ``phi_L`` solved for) or continued
+    (``param = "torque"``, from ``torque`` or 0); otherwise ``Phi`` and ``T``; ``phase``: a phase condition
+    (:class:`rodcont.ends.Phase`, for the weightless rod). ``ValueError`` for a combination that continues a
+    parameter solved for."""
+    from ..ends import Clamp, Phase, RodEnds, Rotation, Tension, Torque, UnstressedLength
+    if not isinstance(phase, (bool, np.bool_)):
+        raise TypeError(f"phase must be True or False, got {phase!r}")
+    if phase and param == "w":
+        raise ValueError("under a phase condition the weight is solved for (0 on every equilibrium): it cannot "
+                         "be continued")
+    if torque is not None:
+        torque = check_number("torque", torque)
+        if param == "phi_L":
+            raise ValueError("under a prescribed torque phi_L is solved for: continue the torque itself "
+                             "(param='torque', --param torque) or a rod parameter")
+    if l0 is not None:
+        l0 = check_number("l0", l0, positive=True)
+        if param in ("T", "gamma"):
+            raise ValueError("under a prescribed unstressed length l0 the tension is solved for: it cannot be "
+                             "continued (continue l0 itself, param='l0', --param l0)")
+    elif param == "l0":
+        raise ValueError("param='l0' continues the unstressed length: give its start value (l0=, --l0)")
+    twist = Torque(torque or 0.0) if (torque is not None or param == "torque") else Rotation()
+    return RodEnds(end=(Clamp(), twist, UnstressedLength(l0) if l0 is not None else Tension())
+                   + ((Phase(),) if phase else ()))
+
+
+def _rod_and_tension(gamma, rod, N, k, T, param, start, l0=None):
+    """The checked rod, mesh size and tension of a trace (``ValueError``/``TypeError`` naming the input); under
+    length control (``l0``) the tension is the straight rod's, ``EA (L/l0 - 1)``, a first guess."""
     if rod is None:
         rod = RodParameters()
     if not isinstance(rod, RodParameters):
@@ -471,8 +534,16 @@ def _rod_and_tension(gamma, rod, N, k, T, param, start):
         raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N}")
     if not 1 <= k <= 7:
         raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k}")
-    if param not in SYSTEM_PARAMS:
-        raise ValueError(f"param must be one of {', '.join(SYSTEM_PARAMS)}, got {param!r}")
+    if param not in TRACE_PARAMS:
+        raise ValueError(f"param must be one of {', '.join(TRACE_PARAMS)}, got {param!r}")
+    if l0 is not None:
+        if gamma is not None or T is not None:
+            raise ValueError("give one of gamma, T and l0 (the tension, or the unstressed length that sets it)")
+        l0 = check_number("l0", l0, positive=True)
+        T = rod.EA * (rod.L / l0 - 1.0)
+        if start is None:
+            check_tension(rod, T, "the straight rod of this unstressed length has a tension that")
+        return rod, N, k, T
     if T is None:
         if gamma is None:
             raise ValueError("give gamma (T = gamma w L) or T")
@@ -512,44 +583,219 @@ class _Start:
     p0: float
     tangent0: tuple | None = None
     exact: bool = False
+    ds_min: float | None = None  # a smallest step below the options' (a start at the vertex of a pitchfork)
+    notes: list = dataclasses.field(default_factory=list)  # what was done to reach it (a stiffened contact law)
 
 
-def _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall) -> _Start:
+def _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall,
+                 ends=None, from_critical=None, stiffen=False) -> _Start:
     """Where a trace starts: the straight state, a stored point (with its direction), or the sag."""
+    from ..ends import Torque
+    ends = trace_ends(param=param) if ends is None else ends
+    if from_critical is not None:
+        return _critical_start(rod, T, N, k, param, from_critical, breakpoints, curve, wall, ends)
     if from_straight is not None:
         phi0 = check_number("from_straight", from_straight)
         if curve is not None and not getattr(curve, "constant_frame", False):
             raise ValueError("--from-straight needs the straight reference (the straight rod state lives there)")
-        sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints)
-        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints)
+        if "phi_L" in ends.frees and param != "torque":
+            raise ValueError("--from-straight gives the end rotation, which a prescribed torque leaves free: "
+                             "continue the torque from there (--param torque) or start from a stored point")
+        if param == "torque":  # the straight rod's torque at phi0, GJ alpha phi0 / L (alpha at its T)
+            ends = _with_twist(ends, Torque(rod.GJ * (1.0 + T / rod.EA) * phi0 / rod.L))
+        sysw, x0 = straight_seed(rod, T, phi0, N, k, breakpoints, ends=ends)
+        system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi0, breakpoints=sysw.disc.breakpoints, ends=ends)
         return _Start(system, x0, phi0 if param == "phi_L" else system.value())
     if start is not None:
-        return _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall)
-    if param != "phi_L":
-        raise ValueError(f"a trace in {param} starts from a stored point or from the straight state")
-    system = RodSystem(rod, T=T, N=N, k=k, param="phi_L", breakpoints=breakpoints, curve=curve, wall=wall)
+        return _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall, ends)
+    if param not in ("phi_L", "torque") or ends.find(Torque) is not None and ends.find(Torque).M != 0:
+        raise ValueError(f"a trace in {param} starts from a stored point or from the straight state"
+                         if param not in ("phi_L", "torque") else
+                         "a trace in the torque from the sag starts at torque 0 (or from --start / --from-straight)")
+    system = RodSystem(rod, T=T, N=N, k=k, param=param, breakpoints=breakpoints, curve=curve, wall=wall, ends=ends)
     x0 = system.model.initial_guess(system.disc, system.base[1])
+    notes: list = []
     if wall is not None:
         from .solve import ConvergenceError, settle_in_conduit
         try:
             with np.errstate(all="ignore"):
                 x0 = settle_in_conduit(system, x0, system.params(0.0))
+                if stiffen:
+                    x0 = _within_penetration_guard(system, x0, notes)
         except ConvergenceError as exc:
             raise TraceError(str(exc)) from None
-    return _Start(system, x0, 0.0)
+    return _Start(system, x0, 0.0, notes=notes)
 
 
-def _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall) -> _Start:
+def _within_penetration_guard(system: RodSystem, x0: np.ndarray, notes: list, max_error: float = 1e-6) -> np.ndarray:
+    """The start in a conduit at most :data:`rodcont.contact.MAX_PENETRATION` of the clearance inside the wall, as
+    ``solve`` leaves it: a deeper one is reached again under a law stiffened by a homotopy in its force scale
+    (:func:`rodcont.drivers.solve.stiffen_contact`) until within a tenth of the guard; ``notes`` says so. Only a
+    law the trace chose (the wall gave no force_scale: a given one is the user's, kept), and only on a start its
+    mesh resolves (its error estimate within ``max_error``). The branch then keeps
+    its law; :class:`PenetrationWatch` says where it goes deeper."""
+    from ..contact import MAX_PENETRATION, penetration
+    from .solve import stiffen_contact
+    from ..mesh import ErrorEstimator
+    p = system.params(system.value())
+    P0, depth0 = system.model.contact_scale, penetration(system.model, system.disc, x0, p)
+    depth = depth0
+    if depth0 > MAX_PENETRATION and not ErrorEstimator(system).estimate(x0, system.value()) <= max_error:
+        # on a mesh that does not resolve the start its depth is the discretisation's (the 1 km drill pipe at the
+        # default N: a law stiffened 2e6 times, then solved, put its side force at 9.9e6 for 1.36e5): left to
+        # the engine's refinement, and the watch says where it stays deep
+        return x0
+    for _ in range(8):  # as solve's rounds: the depth is not linear in 1/P where the law stiffens a peak
+        if not depth > MAX_PENETRATION:
+            break
+        x0 = stiffen_contact(system, x0, p, system.model.contact_scale * depth / (MAX_PENETRATION / 10))
+        depth = penetration(system.model, system.disc, x0, p)
+    if depth0 > MAX_PENETRATION:
+        notes.append(f"the contact law was stiffened from force_scale {P0:.4g} to {system.model.contact_scale:.4g}: "
+                     f"the rod sat {depth0:.2g} of the clearance inside the wall at the start (guard "
+                     f"{MAX_PENETRATION:g}; now {depth:.2g})")
+    return x0
+
+
+class PenetrationWatch:
+    """In a conduit: the first stored point where the rod sits deeper than :data:`rodcont.contact.MAX_PENETRATION`
+    of the clearance inside the wall (the contact law too soft for the loads there), an observer of the engine:
+    ``crossed = (value before, value after, depth)``, warned of by :func:`run` and stored in the file
+    (``penetration_guard``). It neither stops the branch nor adds a point: a law stiffened on the way would be
+    another problem, and a located point changed the steps of a trace in T on a wall enough to send it along
+    another branch past a branch point (README Limits)."""
+
+    def __init__(self):
+        self.before = None  # (parameter, depth) of the last point
+        self.crossed = None
+
+    def __call__(self, system: RodSystem, pt: Point, recorder=None) -> None:
+        from ..contact import MAX_PENETRATION
+        depth = pt.data.get("penetration")
+        if depth is None:
+            return
+        if self.crossed is None and depth > MAX_PENETRATION:
+            self.crossed = (self.before[0] if self.before else float(pt.p), float(pt.p), float(depth))
+        self.before = (float(pt.p), float(depth))
+
+    def message(self, system: RodSystem) -> str:
+        from ..contact import MAX_PENETRATION
+        a, b, depth = self.crossed
+        return (f"penetration guard: the rod sits deeper than {MAX_PENETRATION:g} of the clearance inside the wall "
+                f"from {system.param} between {a:.10g} and {b:.10g} ({depth:.2g} there): the contact law is too "
+                f"soft for these loads (give the conduit file a larger force_scale than "
+                f"{system.model.contact_scale:.4g})")
+
+
+def _critical_start(rod, T, N, k, param, n, breakpoints, curve, wall, ends) -> _Start:
+    """At the ``n``-th critical twist of the straight weightless rod (under the trace's axial control), along the
+    bifurcating helical branch, with a phase condition (:class:`rodcont.ends.Phase`) that fixes the turn of its
+    circle of buckled states.
+
+    The critical twist is refined on the trace's own mesh (its pencil, :func:`rodcont.drivers.diagram._pencil`);
+    the Jacobian there has a two-dimensional null space (the circle's two modes, O(2)); the start leaves along
+    the null vector that meets the phase condition (``int Delta . g dS = 0``), exactly (branch switching).
+    """
+    from ..ends import Phase, RodEnds, UnstressedLength
+    from ..rod import Jet
+    from .diagram import _pencil, _refine, critical_twists
+    from .solve import first_mesh
+    n = check_number("from_critical", n, integer=True)
+    if n < 1:
+        raise ValueError(f"from_critical counts the critical twists from 1, got {n}")
+    if param != "phi_L" or "phi_L" in ends.frees:
+        raise ValueError("from_critical starts a trace in phi_L (with the end rotation imposed)")
+    if wall is not None or (curve is not None and not getattr(curve, "constant_frame", False)):
+        raise ValueError("from_critical needs the straight reference without a conduit (the straight rod state)")
+    if rod.w != 0:
+        raise ValueError("from_critical is for the weightless rod (w = 0), whose buckled states come in circles; "
+                         "with a weight, reach the buckled branches from the straight state (--from-straight)")
+    length = ends.find(UnstressedLength)
+    crit, window = [], 40.0
+    while len(crit) < n and window <= 200.0:
+        crit = critical_twists(rod, T, phi_max=window, k=k, l0=None if length is None else length.l0)
+        window = 200.0 if window < 200.0 and 2 * window > 200.0 else 2 * window
+    if len(crit) < n:
+        raise ValueError(f"the straight rod has {len(crit)} critical twist(s) below 200 rad, not {n}")
+    ends = RodEnds(start=ends.start, end=ends.end + (Phase(),))
+    if breakpoints is None:
+        N = max(N, first_mesh(rod, T, curve))
+    system = RodSystem(rod, T=T, N=N, k=k, breakpoints=breakpoints, ends=ends)
+    phys = system.without_phase()
+    A, B = _pencil(rod, T, system.disc.N, k, phys.ends, breakpoints=system.disc.breakpoints)
+    phi_c = _refine(A, B, float(crit[n - 1]))
+    xs = phys.straight_state(phi_c)
+    modes = _circle_modes(phys.disc.linearise(xs, phys.params(phi_c))[1], phys)
+    g = np.asarray(phys.model.gK, float)
+
+    def phase(v) -> float:  # int Delta . g dS of a mode
+        z = phys.disc.jets(v)
+        return phys.disc.integrate(z[Jet.D1[0]] * g[0] + z[Jet.D2[0]] * g[1])
+
+    v = phase(modes[1]) * modes[0] - phase(modes[0]) * modes[1]
+    v = v / np.max(np.abs(v / phys.arclength_scale()[0]))
+    # the first step: at the vertex of the pitchfork, where Phi grows with the square of the mode's amplitude, the
+    # branch may turn from the mode's direction to Phi's within a short arc (in the arclength's scales, deflections
+    # by L: on the long rod of the localized helix, L = 37, within 1e-6, below the default ds_min); the first step
+    # is the options' ds, halved as the angle test asks (a first step of 1e-7 everywhere left the rod under length
+    # control at amplitudes where dPhi/ds is rounding, and its noise read as folds)
+    return _Start(system, system.expanded(phys.stored(xs)), phi_c,
+                  (system.expanded(phys.stored(v), tangent=True), 0.0), True, ds_min=CRITICAL_DS_MIN)
+
+
+#: the smallest step of a trace from a critical twist (the options' ds_min is lowered to it)
+CRITICAL_DS_MIN = 1e-10
+
+
+def _circle_modes(J, system) -> list:
+    """Two independent null vectors of ``J`` (singular to rounding, with a two-dimensional null space: a critical
+    twist of the straight rod), by inverse iteration from two starts, in the problem's scales."""
+    from scipy import sparse
+    from ..linalg import LU, SingularMatrix
+    sx = system.arclength_scale()[0]
+    A = (J @ sparse.diags(sx)).tocsc()
+    try:
+        lu = LU(A)
+    except SingularMatrix:
+        lu = LU((A + 1e-14 * abs(A).max() * sparse.identity(A.shape[0], format="csc")).tocsc())
+    rng = np.random.default_rng(7)
+    out: list = []
+    for _ in range(2):
+        y = rng.standard_normal(A.shape[0])
+        for _ in range(3):
+            y = lu.solve(y)
+            y /= np.linalg.norm(y)
+        for q in out:  # orthogonal to the first (scaled units)
+            y -= (q @ y) * q
+        out.append(y / np.linalg.norm(y))
+    return [sx * y for y in out]
+
+
+def _with_twist(ends, twist):
+    """``ends`` with the twist condition at ``S = L`` replaced by ``twist``."""
+    from ..ends import RodEnds
+    return RodEnds(start=ends.start, end=tuple(twist if c.kind == "twist" else c for c in ends.end))
+
+
+def _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve, wall, ends=None) -> _Start:
+    """A start at a stored point ``start = (x, value, direction)`` (its solution stored without freed parameters,
+    or with them); under a continued torque the point's own torque is the start value given."""
+    from ..ends import Torque
     x0, p0, t0 = start
-    system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
-                       breakpoints=breakpoints, curve=curve, wall=wall)
-    x0 = np.asarray(x0, float)
-    if x0.size != system.disc.size:
-        raise ValueError("the start point does not fit this mesh (N, k)")
     p0 = check_number("start value", p0)
+    if param == "torque":
+        ends = _with_twist(ends, Torque(p0))
+    system = RodSystem(rod, T=T, N=N, k=k, param=param, phi_L=phi_L if param != "phi_L" else 0.0,
+                       breakpoints=breakpoints, curve=curve, wall=wall, ends=ends)
+    x0 = np.asarray(x0, float)
+    if x0.size not in (system.disc.size, system.disc.size - system.disc.n_free):
+        raise ValueError("the start point does not fit this mesh (N, k)")
+    x0 = system.expanded(x0)
     tangent0 = None
     if t0 is not None:
         tangent0 = (np.asarray(t0[0], float), float(t0[1]))
+        if tangent0[0].size == x0.size - system.disc.n_free:
+            tangent0 = (system.expanded(tangent0[0], tangent=True), tangent0[1])
         if tangent0[0].size != x0.size:
             tangent0 = (np.zeros(x0.size), tangent0[1] if tangent0[1] != 0 else 1.0)
     if not switch:
@@ -560,11 +806,13 @@ def _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve,
 
 
 def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
-          T: float | None = None, param: str = "phi_L", phi_L: float = 0.0,
-          start: tuple | None = None, switch: bool = False, from_straight: float | None = None,
-          breakpoints=None, out: str | None = None, overwrite: bool = False, meta: dict | None = None,
-          store_every: int = 1, curve=None, wall=None, callback: Callable[[Point], None] | None = None,
-          settings: ContinuationSettings | None = None, resume: Branch | None = None, **options) -> Branch:
+          T: float | None = None, param: str = "phi_L", phi_L: float = 0.0, l0: float | None = None,
+          torque: float | None = None, phase: bool = False, start: tuple | None = None, switch: bool = False,
+          from_straight: float | None = None, from_critical: int | None = None, breakpoints=None,
+          out: str | None = None, overwrite: bool = False,
+          meta: dict | None = None, store_every: int = 1, curve=None, wall=None,
+          callback: Callable[[Point], None] | None = None, settings: ContinuationSettings | None = None,
+          resume: Branch | None = None, **options) -> Branch:
     """Trace a branch of the twisted heavy rod; returns a :class:`Branch` (and writes ``out`` as it goes).
 
     In ``phi_L`` (default) from the planar sag at ``phi_L = 0``; from a stored
@@ -579,27 +827,50 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     tangent) of every ``store_every``-th point only, and of every special point
     and the last one, in the file and in the returned branch (smaller files, and the memory of a long
     trace; the table keeps every point, ``coefficients[i]`` is empty where the solution was not kept).
+
+    Other controls (:func:`trace_ends`): ``l0`` prescribes the unstressed length instead of the tension (``T``
+    is solved for at each point, a column of the table); ``param = "torque"`` continues the end torque with
+    the end rotation free (the distinguished diagram under torque control: its folds are torque extrema, the
+    stability counted with the rotation free; ``phi_L`` a column, bounded by ``phi_min``, ``phi_max``);
+    ``torque`` holds a torque fixed for a trace in a rod parameter from a stored point. ``from_critical = n``:
+    the weightless rod from its ``n``-th critical twist along the bifurcating helical branch
+    (:func:`_critical_start`), with a phase condition (:class:`rodcont.ends.Phase`) that fixes the turn of its
+    circle of buckled states (stored in the file's controls: a restart keeps it); the stability is counted
+    without it (the rotation's null eigenvalue is not an unstable mode).
+
     ``options``: the fields of :class:`TraceOptions` (a misspelt name is a ``TypeError``).
     ``resume``: the branch (read from ``out``) this trace continues from its last point: its points come
     first, the start takes the last one's place (:func:`rodcont.restart.resume`).
     The branch's ``status`` says why it ended (:class:`rodcont.result.Status`), ``stop_reason`` in words.
     """
     opts = _options(options, "trace()")
-    rod, N, k, T = _rod_and_tension(gamma, rod, N, k, T, param, start)
+    rod, N, k, T = _rod_and_tension(gamma, rod, N, k, T, param, start, l0)
     phi_L = check_number("phi_L", phi_L)
-    if start is not None and from_straight is not None:
-        raise ValueError("give start or from_straight, not both")
     if switch and start is None:
         raise ValueError("switch needs a start point (a branch point) with its incoming direction")
+    ends = trace_ends(l0, torque, param, phase)
     curve, wall = _curve_and_wall(curve, wall, rod, from_straight)
-    st = _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall)
+    stiffen = wall is not None and wall.force_scale is None and start is None  # a given law is kept
+    if stiffen:
+        # the problem's own scale; a restart keeps its file's law (files store the resolved scale; those written
+        # before it was stored were solved with Wall.scale's, w or EI c / L^4, which the model takes without one)
+        from ..contact import default_force_scale
+        wall = dataclasses.replace(wall, force_scale=default_force_scale(rod, T, curve, wall))
+    if sum(v is not None for v in (start, from_straight, from_critical)) > 1:
+        raise ValueError("give one of start, from_straight and from_critical")
+    st = _start_state(rod, T, N, k, param, phi_L, start, switch, from_straight, breakpoints, curve, wall, ends,
+                      from_critical, stiffen)
     store_every = check_number("store_every", store_every, integer=True)
     if store_every < 1:
         raise ValueError(f"store_every must be >= 1, got {store_every}")
     settings = settings or opts.continuation_settings(param)
+    if st.ds_min is not None and st.ds_min < settings.ds_min:
+        settings = dataclasses.replace(settings, ds_min=st.ds_min)
+    if st.notes:
+        meta = dict(meta or {}, notes=json.dumps(st.notes))
     attrs = file_meta(rod, T, N, k, param, opts, st.system, meta, settings)
     branch = Branch(rod.gamma(T) if rod.w > 0 else math.nan, rod, N, k, param, attrs=attrs, curve=st.system.curve,
-                    wall=wall)
+                    wall=st.system.wall)
     writer, recorder = _open_output(out, overwrite, attrs, store_every, branch, st.system)
     try:
         if resume is not None:  # inside: the writer is closed (its lock released) whatever happens
@@ -623,6 +894,7 @@ def _open_output(out, overwrite, attrs, store_every, branch, system):
         check_output(out, curve_files(system.curve), overwrite=overwrite)  # never onto the survey it reads
         writer = BranchWriter(out, attrs, store_every=store_every)
         group = writer.group("/", extra_columns=((branch.param,) if branch.param != "phi_L" else ())
+                             + (("T",) if "T" in system.freed else ())
                              + (CONTACT_COLUMNS if system.wall is not None else ()))
         _mesh_group(writer, system)
         contact = _ContactRows(system) if system.wall is not None else None
@@ -635,6 +907,8 @@ def _close_output(writer, branch: Branch, contact) -> None:
             writer.f.attrs["missed_crossings"] = json.dumps(branch.missed_crossings)
         if branch.unlocated:
             writer.f.attrs["unlocated"] = json.dumps(branch.unlocated)
+        if getattr(branch, "penetration_guard", None):
+            writer.f.attrs["penetration_guard"] = json.dumps(branch.penetration_guard)
         if contact is not None and len(branch):
             # the rows are computed as the points are recorded: here at most the last point's (when a second
             # Ctrl-C came during its computation), so an interrupt does not wait
@@ -797,7 +1071,7 @@ class _ContactRows:
             sysm = self._mesh[1]
             value = branch.table[system.param][i] if system.param != "phi_L" else branch.table["phi_L"][i]
             p = sysm.params(float(value))
-            x = branch.coefficients[i]
+            x = sysm.expanded(branch.coefficients[i])
             fine = model.contact(sysm.disc, x, p)
             at = model.contact(sysm.disc, x, p, S=self.S)
             row = {name: np.asarray(at[name], np.float32) for name in ("pressure", "gap", "axial_force", "torque")}
@@ -832,7 +1106,9 @@ def file_meta(rod: RodParameters, T: float, N: int, k: int, param: str, opts: Tr
     meta = dict(kind="branch", gamma=rod.gamma(T) if rod.w > 0 else math.nan, T=float(T), w=rod.w, EI=rod.EI,
                 GJ=rod.GJ, EA=rod.EA, L=rod.L, N=int(N), k=int(k), param=param,
                 weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=opts.min_alignment,
-                max_error=opts.max_error, phi_L_fixed=float(system.base[0]) if param != "phi_L" else math.nan,
+                max_error=opts.max_error,
+                phi_L_fixed=float(system.base[0]) if param != "phi_L" and "phi_L" not in system.freed else math.nan,
+                controls=json.dumps(controls_spec(system.ends)),
                 reference=str(getattr(system.curve, "spec", "straight") or "straight"),
                 # the force scale as resolved (a default follows w or EI, which a trace may change)
                 conduit=(dataclasses.replace(system.wall, force_scale=system.model.contact_scale).spec
