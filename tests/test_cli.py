@@ -160,10 +160,10 @@ def test_interrupted_trace_leaves_a_valid_file_and_restarts(tmp_path):
     proc = subprocess.Popen([sys.executable, os.path.join(ROOT, "cli.py"), "trace", "--gamma", "1", "--N", "40",
                              "--ds-max", "0.05", "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
-    deadline = time.time() + 60
+    deadline = time.monotonic() + 600  # only bounds a hung run: the wait is for points on disk, not for a time
     n = 0
-    while time.time() < deadline:  # wait until some points are on disk
-        time.sleep(0.3)
+    while time.monotonic() < deadline and proc.poll() is None:  # wait until some points are on disk
+        time.sleep(0.05)
         try:
             with h5py.File(out, "r", locking=False) as f:
                 n = f["branch/phi_L"].shape[0]

@@ -596,7 +596,7 @@ def test_well_reference_makes_its_curvature_jumps_joins():
     disc = model.discretise(10)
     assert np.all(np.isin(well.breakpoints, disc.breakpoints))
     assert disc.n_interface == 10 and disc.size == 6 * 10 * 5 + 11 + 10
-    with pytest.raises(ValueError, match="join must be an interior breakpoint"):
+    with pytest.raises(ValueError, match="breakpoint at every station of the reference curve"):
         model.discretise(breakpoints=np.linspace(0, 1, 11))
     with pytest.raises(ValueError, match="span"):
         EulerianRod(RodParameters(L=1.0), well)

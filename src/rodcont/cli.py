@@ -383,14 +383,13 @@ def _tension(gamma, rod):
 
 def _stretch_warning(rod, T) -> None:
     """Warn of a tension beyond half of EA: the model is right for any stretch, a real rod is not, and this
-    is nearly always a forgotten --EA. Called once the input has passed every check (a refused command
-    gives its one-line error alone)."""
+    is nearly always a forgotten --EA. Said once the command has ended: a command the library then refuses
+    (T = 1e30 'is not a usable number') gives its one-line error alone (the fuzz's numeric probes)."""
     from .drivers.solve import euler_tension
     # (below the Euler load, or not finite, the tension is refused anyway)
     if math.isfinite(T) and abs(T) > 0.5 * rod.EA and T > euler_tension(rod):
-        click.echo(f"rodcont: warning: T = {T:g} stretches the rod by T/EA = {T / rod.EA:.3g} "
-                   f"(EA = {rod.EA:g}{', the paper default' if rod.EA == 255.0 else ''}): give the rod's "
-                   f"--EA if it is not meant", err=True)
+        _warn_later(f"T = {T:g} stretches the rod by T/EA = {T / rod.EA:.3g} (EA = {rod.EA:g}"
+                    f"{', the paper default' if rod.EA == 255.0 else ''}): give the rod's --EA if it is not meant")
 
 
 def _meta():
@@ -1258,7 +1257,10 @@ def shape(file, points, branch, output, overwrite):
             pt = data.point(label)
         except BranchFileError as exc:
             raise UserError(str(exc)) from None
-        disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
+        try:  # a file edited by hand (unverified) can hold a mesh that is not the rod's
+            disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
+        except ValueError as exc:
+            raise UserError(f"{file}: point {pt['index']}: {exc}") from None
         r = model.centreline(disc, pt["x"], S)
         if wall is not None:
             r = jet.R + magnify * (r - jet.R)  # r - R = Delta1 K1 + Delta2 K2

@@ -59,17 +59,22 @@ def stored_options(data) -> dict:
     return out
 
 
-def carried_options(data, param: str, options: dict | None = None) -> dict:
+def carried_options(data, param: str, options: dict | None = None, pt: dict | None = None) -> dict:
     """The options of a restart in ``param``: the file's, overridden by ``options`` (those given).
 
     The direction is the restart's own; the range of a parameter is carried only for a restart in the
-    stored branch's parameter. A first step the given ``ds_max`` (or ``ds_min``) excludes is brought
-    inside it, unless ``ds`` was given too."""
+    stored branch's parameter. The file's ``stretch_max`` is not carried when the start point ``pt``
+    already reached it (the point that stopped that trace starts this one: test_every_stored_point_is_a_valid_start).
+    A first step the given ``ds_max`` (or ``ds_min``) excludes is brought inside it, unless ``ds`` was
+    given too."""
     given = dict(options or {})
     out = stored_options(data)
     out.pop("direction", None)
     if param != data.param or out.get("p_range") is None:
         out.pop("p_range", None)
+    smax = out.get("stretch_max")
+    if smax is not None and pt is not None and float(pt.get("stretch", -math.inf)) >= float(smax) * (1 - 1e-9):
+        out.pop("stretch_max")
     out.update(given)
     if "ds" not in given and {"ds", "ds_max", "ds_min"} <= set(out):
         out["ds"] = min(max(out["ds"], out["ds_min"]), out["ds_max"])
@@ -204,7 +209,7 @@ def restart_from(data, label=-1, *, param: str = "phi_L", direction=1, switch: b
     if N is not None and int(N) != b.size - 1:
         x0, tangent, b = _carried(data, rod, T, kfile, b, x0, tangent, int(N))
     out.update(N=b.size - 1, start=(x0, value, tangent), breakpoints=b)
-    opts = carried_options(data, param, options)
+    opts = carried_options(data, param, options, pt)
     opts["direction"] = direction
     out.update(opts)
     store_every = data.attrs.get("store_every", 1)
