@@ -221,3 +221,41 @@ def test_at_the_located_fold_of_collocation_bratu_the_solve_matches_the_whole_lu
         assert rel_error(solver.solve(f), ref) <= 10 * rel_error(whole.solve(f), ref) + 1e-12
     assert solver.det()[0] == whole.det()[0]
     assert solver.factor_nonzeros() <= 5 * M.nnz
+
+
+# --------------------------------------------------------------------------
+# The tracker's default solver (a problem without a bordered_solver hook)
+# --------------------------------------------------------------------------
+def test_the_tracker_traces_fd_bratu_through_its_fold_without_filling(monkeypatch):
+    """Unscaled FD Bratu, n = 6000, a problem with no hook: the tracker's solvers are block eliminations
+    whose factors stay J's (at most 1.5 times the bordered matrix's nonzeros; an LU of that matrix holds 50
+    times them, test_the_border_row_fills_an_lu_of_the_whole_matrix_and_not_the_solver), and the fold it
+    locates is the discrete fold found by Moore-Spence's extended system (fd_bratu_fold) to 1e-9."""
+    import sys
+    from rodcont.continuation import ContinuationSettings, Tracker
+    continuation = sys.modules["rodcont.continuation"]  # (the package's name `continuation` is its function)
+    n = 6000
+    h2 = (1.0 / (n + 1)) ** 2
+    lap = sp.diags([np.ones(n - 1), -2 * np.ones(n), np.ones(n - 1)], [-1, 0, 1], format="csc")
+
+    class FD:
+        def residual(self, u, lam):
+            return lap @ u + h2 * lam * np.exp(u)
+
+        def linearise(self, u, lam):
+            e = h2 * np.exp(u)
+            return lap @ u + lam * e, (lap + sp.diags(lam * e)).tocsc(), e
+
+    made = []
+
+    def counted(J, b, c, d):
+        s = linalg.bordered_solver(J, b, c, d)
+        made.append(s.factor_nonzeros() / (J.nnz + 2 * J.shape[0] + 1))
+        return s
+
+    monkeypatch.setattr(continuation, "bordered_solver", counted)
+    s = ContinuationSettings(ds=0.2, ds_max=0.5, p_max=3.6, p_min=0.5, max_steps=80)
+    pts = list(Tracker(FD(), np.zeros(n), 0.5, s))
+    fold = next(q for q in pts if q.kind == "fold")
+    assert made and max(made) <= 1.5
+    assert abs(fold.p - fd_bratu_fold(n)[1]) < 1e-9

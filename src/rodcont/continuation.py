@@ -72,7 +72,7 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 from scipy import sparse
 
-from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, max_norm, newton_solve
+from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, bordered_solver, max_norm, newton_solve
 from .result import ContinuationResult, Status
 
 
@@ -518,6 +518,14 @@ class Tracker:
         J, Fp = pb.tangent(x, p)
         return F, J, Fp
 
+    def _factorise(self, J, Fp, row):
+        """The solver of ``[[J, F_p], [row]]``: the problem's ``bordered_solver(J, b, c, d)`` if it has one
+        (the rod keeps the LU of the whole matrix, its border does not fill), else block elimination on the
+        LU of ``J`` (:class:`~rodcont.linalg.BorderedSolver`: memory linear in n on FD Bratu,
+        benchmarks/bordered_fd.py)."""
+        make = getattr(self.problem, "bordered_solver", None) or bordered_solver
+        return make(J, np.asarray(Fp, float), row[:-1], row[-1])
+
     def _border(self, tx, tp) -> np.ndarray:
         return np.append(self.wx * np.asarray(tx, float), self.wp * float(tp))
 
@@ -536,7 +544,7 @@ class Tracker:
             linearisation = self._linearise(x, p)
         F, J, Fp = linearisation
         row = self._border(tx_ref, tp_ref)
-        lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+        lu = self._factorise(J, Fp, row)
         self.factorisations += 1
         rhs = np.zeros(self.n + 1)
         rhs[-1] = 1.0
@@ -597,7 +605,7 @@ class Tracker:
         y_pred = np.append(base.x + ds * base.tx, base.p + ds * base.tp)
         chord = base.solver
         prev = self._previous
-        if near is not None and isinstance(near[1].solver, RowUpdatedLU):
+        if near is not None and getattr(near[1].solver, "lu", None) is not None:  # a row update of q's solver
             ds0, q = near
             along = self._wdot(q, base)
             if along > 0.5:  # q's tangent crosses the hyperplanes <t_base, y - y_base> = const
@@ -669,7 +677,7 @@ class Tracker:
             stalled = res >= 0.5 * prev_res and prev <= math.sqrt(tol) * (1 + self._ymax(y))
             prev_res = res
             try:
-                lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+                lu = self._factorise(J, Fp, row)
             except SingularMatrix:
                 return None, "singular Jacobian"
             self.factorisations += 1
@@ -790,7 +798,7 @@ class Tracker:
         # start along this direction corrects it on the hyperplane through x, or fails and says so)
         F, J, Fp = self._linearise(x, p)
         row = np.random.default_rng(20261123).standard_normal(self.n + 1)
-        lu = LU(bordered(J, np.asarray(Fp, float), row[:-1], row[-1]))
+        lu = self._factorise(J, Fp, row)
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
         t = lu.solve(e)

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .collocation import Collocation
+from .linalg import full_bordered_lu
 from .rod import PARAMS, EulerianRod, RodParameters
 
 SYSTEM_PARAMS = PARAMS + ("gamma",)
@@ -53,6 +54,10 @@ class RodSystem:
     straight rod's, ``EA (L/l0 - 1)``). A solution is stored without those entries (:meth:`stored`: the
     fields' coefficients, the same layout under every control) and read back by :meth:`expanded`.
     """
+
+    #: the LU of the whole bordered matrix: the rod's border does not fill it, and block elimination
+    #: costs ~25 % per step at N = 1500 (benchmarks/bench.py section_bordered)
+    bordered_solver = staticmethod(full_bordered_lu)
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
@@ -358,6 +363,10 @@ class RodSystem2:
     ``q`` is ``gamma`` (``T = gamma w L``, the others fixed) or one of ``T, w,
     EI, GJ, EA`` (the others, including ``T``, fixed).
     """
+
+    #: the LU of the whole bordered matrix: the rod's border does not fill it, and block elimination
+    #: costs ~25 % per step at N = 1500 (benchmarks/bench.py section_bordered)
+    bordered_solver = staticmethod(full_bordered_lu)
 
     def __init__(self, one: RodSystem, param: str):
         if not one.ends.is_default:
