@@ -770,10 +770,17 @@ def _marked(path: str, verified: bool, data):
     return data
 
 
+def _check_path(path) -> None:
+    """A file name, not whatever object (a ``TypeError`` naming it, not ``os.stat``'s)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a file name (str or os.PathLike), got {path!r}")
+
+
 def load_branch(path: str, branch: str | int | None = None) -> Branch:
     """Read a branch file (or branch ``<j>`` of a diagram file) as a :class:`rodcont.branch.Branch`;
     :class:`BranchFileError` with a one-line reason otherwise. A file without rodcont's checksum reads
     with ``unverified = True`` and an :class:`UnverifiedFileWarning`."""
+    _check_path(path)
     verified = _check_file(path)
     return _marked(path, verified, _load_branch(path, branch))
 
@@ -808,6 +815,7 @@ def _load_branch(path: str, branch: str | int | None = None) -> Branch:
 def load_diagram(path: str) -> DiagramData:
     """Read a diagram file (a trace file reads as a diagram of one branch, with its folds); unverified as
     :func:`load_branch` says."""
+    _check_path(path)
     verified = _check_file(path)
     return _marked(path, verified, _load_diagram(path))
 

@@ -48,7 +48,7 @@ import numpy as np
 from .adaptive import AdaptiveContinuation, AdaptiveSettings, ResultRecorder
 from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
-from .continuation import ContinuationSettings, Point
+from .continuation import ContinuationSettings, Event, Point
 from .mesh import ErrorEstimator, adapted_mesh, halved
 from .linalg import full_bordered_lu
 from .result import ContinuationResult, Status, _Rows
@@ -370,6 +370,9 @@ def solve(problem: BVProblem, params, *, guess=0.0, N: int = 10, k: int = 5, mes
     ``N_max``); a mesh on which Newton fails is replaced by the last one halved. Raises
     :class:`BVPError` when Newton does not converge or the accuracy is not reached.
     """
+    _check_api(problem, params=params, outputs=outputs, scales=scales)
+    if mesh is None and (isinstance(N, bool) or not isinstance(N, (int, np.integer))):
+        raise TypeError(f"N (subintervals) must be an integer, got {N!r}")
     _check_positive("max_error", max_error)
     base = _param_vector(problem, params)
     system = BVPSystem(problem, None, base, N if mesh is None else mesh, k, outputs, scales, name)
@@ -396,6 +399,31 @@ def solve(problem: BVProblem, params, *, guess=0.0, N: int = 10, k: int = 5, mes
         x, system = new.transfer(r.x, system), new
     raise BVPError(f"accuracy not reached: estimated error {last.error:.2g} > max_error = {max_error:g} with "
                    f"N = {last.N}" + (" (N_max reached)" if last.N >= N_max else ""))
+
+
+def _check_api(problem, *, params=None, outputs=None, scales=None, events=(), callback=None) -> None:
+    """The API's arguments are what they must be (a ``TypeError`` naming the argument, not an
+    ``AttributeError`` from inside)."""
+    if not isinstance(problem, BVProblem):
+        raise TypeError(f"problem must be a rodcont.BVProblem, got {type(problem).__name__}")
+    if isinstance(params, Mapping):
+        for key, value in params.items():
+            if isinstance(value, (str, bytes, bool)) or np.ndim(value) != 0:
+                raise TypeError(f"params[{key!r}] must be a number, got {value!r}")
+    for what, given, ok in (("outputs", outputs, callable), ("scales", scales, _is_number)):
+        if given is not None and not (isinstance(given, Mapping)
+                                      and all(isinstance(n, str) and ok(v) for n, v in given.items())):
+            kind = "a function of the solution" if what == "outputs" else "a number (the floor)"
+            raise TypeError(f"{what} must be a dict name -> {kind}, got {given!r}")
+    if isinstance(events, (str, bytes)) or not isinstance(events, Sequence) \
+            or not all(isinstance(e, Event) for e in events):
+        raise TypeError(f"events must be a sequence of rodcont.Event, got {events!r}")
+    if callback is not None and not callable(callback):
+        raise TypeError(f"callback must be a function of the point, got {callback!r}")
+
+
+def _is_number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
 
 
 def _check_positive(name, v) -> float:
@@ -450,6 +478,7 @@ class BVPResult(ContinuationResult):
         problem = problem or self.problem
         if problem is None:
             raise ValueError(f"{self.label}: give the problem (a file stores no code)")
+        _check_api(problem)
         pt = self.point(label)
         _check_point(problem, pt, self.attrs, self.label)
         opts = dict(self.options)
@@ -563,6 +592,7 @@ def continue_bvp(problem: BVProblem, param: str, start, p_range: tuple | None = 
     as the run goes (published whole at least every second and at every special point; an existing
     file only with ``overwrite``). Returns a :class:`BVPResult`; its ``status`` says why it ended.
     """
+    _check_api(problem, outputs=outputs, scales=scales, events=events, callback=callback)
     if param not in list(problem.params):
         raise ValueError(f"unknown parameter {param!r}; the problem's: {', '.join(problem.params)}")
     if problem.param_index(param) in set(problem.free):

@@ -508,6 +508,9 @@ class Helix(ReferenceCurve):
             raise ValueError(f"helix: the axial length must be positive, got {span}")
         if not (math.isfinite(turns) and turns != 0):
             raise ValueError(f"helix: the number of turns must be non-zero, got {turns}")
+        if max(radius, span / (2 * math.pi * abs(turns))) > 1e150:  # its squares (curvature, torsion) overflow
+            raise ValueError(f"helix: radius {radius:g} with {turns:g} turns over {span:g} is too large to "
+                             f"represent (radius and axial length per radian must be below 1e150)")
         if frame not in ("bishop", "frenet"):
             raise ValueError(f"helix: frame must be 'bishop' or 'frenet', got {frame!r}")
         self.radius, self.span, self.turns, self.kind = float(radius), float(span), float(turns), frame

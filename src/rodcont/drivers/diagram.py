@@ -65,7 +65,9 @@ def critical_twists(rod: RodParameters | None = None, T: float = 10.0, phi_max: 
     coarse value on ``N_fine`` subintervals, to about 1e-12 relative.
     """
     from .trace import trace_ends
-    rod = rod or RodParameters()
+    rod = RodParameters() if rod is None else rod
+    if not isinstance(rod, RodParameters):
+        raise TypeError(f"rod must be a RodParameters, got {rod!r}")
     ends = None
     if l0 is not None:
         l0 = check_number("l0", l0, positive=True)

@@ -41,6 +41,9 @@ def fold_curve(data, fold: int | str, param: str, lo: float, hi: float, out: str
     :class:`rodcont.branch.Branch` in ``param`` (rows along the locus); ``out`` writes it as a
     fold-curve file.
     """
+    if not isinstance(data, Branch):
+        raise TypeError(f"data must be a branch (rodcont.trace's result, or rodcont.load_branch(path)), "
+                        f"got {type(data).__name__}")
     fold = _fold_number(fold)
     if param not in CURVE_PARAMS:
         raise ValueError(f"param must be one of {', '.join(CURVE_PARAMS)}, got {param!r}")

@@ -844,6 +844,11 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     The branch's ``status`` says why it ended (:class:`rodcont.result.Status`), ``stop_reason`` in words.
     """
     opts = _options(options, "trace()")
+    if start is not None and not (isinstance(start, (tuple, list)) and len(start) == 3):
+        raise TypeError(f"start must be a stored point (x, value, direction), got {type(start).__name__}: "
+                        f"from a branch, rodcont.trace(**rodcont.restart.restart_from(branch, label))")
+    if callback is not None and not callable(callback):
+        raise TypeError(f"callback must be a function of the point, got {callback!r}")
     rod, N, k, T = _rod_and_tension(gamma, rod, N, k, T, param, start, l0)
     phi_L = check_number("phi_L", phi_L)
     if switch and start is None:
