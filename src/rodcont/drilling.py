@@ -447,8 +447,56 @@ def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
     p = disc.full_params(x, sysm.base)
     con = model.contact(disc, x, p)
     F, M = axial_force_and_torque(model, disc, x, p, con["S"])
-    level = model.wall.contact_level * model.contact_scale
+    # on the wall where the gap is below 1 % of the clearance (the law's standoff is eps c P / p; a free span's
+    # gap is of the order of c): a pressure level would miss a light pipe's contact under a large force scale
     profile = dict(S=con["S"], axial_force=F, torque=M, pressure=con["pressure"], gap=con["gap"],
-                   in_contact=con["pressure"] >= level)
+                   in_contact=con["gap"] <= 0.01 * model.wall.clearance_at(con["S"]))
     return TorqueDrag(float(placed.curve.length), op, mu, float(wob), float(bit_torque), float(F[0]), float(M[0]),
                       profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed)
+
+
+# --------------------------------------------------------------------------
+# The soft-string estimate (Johancsik) on the same well path
+# --------------------------------------------------------------------------
+def soft_string(well: Well, string: DrillString, depth: float, operation: Operation | str = "static", *, mu=None,
+                wob: float = 0.0, bit_torque: float = 0.0, step: float = 10.0) -> tuple:
+    """``(hook_load, surface_torque)`` of the soft string (a cable on the wall of the well path): from the bit
+    up, classical Runge-Kutta in steps of at most ``step`` between the survey stations, section boundaries
+    and friction stations, with ``t = K3`` and ``kappa n = K3'`` of the minimum-curvature path (``g = -e3``)::
+
+        dF/dS = -w (g . t) - s_a mu |N|,   dM/dS = -s_r mu |N| r,   N = F kappa n + w (g - (g . t) t).
+
+    (The broomstick's estimate beside the stiff string; the tests check the stiff string against the
+    independent implementation in ``tests/softstring_reference.py``.)"""
+    op = Operation.named(operation) if isinstance(operation, str) else operation
+    placed = place_string(well, string, depth)
+    curve, L = placed.curve, placed.curve.length
+    mu = well.friction if mu is None else mu
+    cuts = {0.0, L} | {float(b) for b in curve.breakpoints if 0 < b < L} | {a for a, _ in placed.radius if 0 < a < L}
+    if not isinstance(mu, (int, float)):
+        cuts |= {float(a) for a, _ in mu if 0 < a < L}
+    edges = np.array(sorted(cuts))
+    g = np.array([0.0, 0.0, -1.0])
+    y = np.array([-float(wob), float(bit_torque)])
+
+    def rhs(S, y, w, r, m):
+        j = curve.jet(np.array([S]))
+        t, kn = j.K[2][:, 0], j.k[0, 0, 0] * j.K[0][:, 0] + j.k[1, 0, 0] * j.K[1][:, 0]
+        gt = float(g @ t)
+        N = float(np.linalg.norm(y[0] * kn + w * (g - gt * t)))
+        s_a, s_r = op.split(r)
+        return np.array([-w * gt - s_a * m * N, -s_r * m * N * r])
+    for a, b in zip(edges[::-1][1:], edges[::-1][:-1]):
+        mid = 0.5 * (a + b)
+        w, r = float(_value_at(placed.weights, mid)), float(_value_at(placed.radius, mid))
+        m = float(_value_at(mu if not isinstance(mu, (int, float)) else float(mu), mid))
+        n = max(1, math.ceil((b - a) / step))
+        h = (b - a) / n
+        for i in range(n):  # upward: S decreases by h
+            S = b - i * h
+            k1 = rhs(S, y, w, r, m)
+            k2 = rhs(S - h / 2, y - h / 2 * k1, w, r, m)
+            k3 = rhs(S - h / 2, y - h / 2 * k2, w, r, m)
+            k4 = rhs(S - h, y - h * k3, w, r, m)
+            y = y - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return float(y[0]), float(y[1])
