@@ -173,10 +173,33 @@ class UnstressedLength(EndCondition):
         return n / alpha - p[model.param_names.index("l0")] / (b - a)
 
 
+@dataclass(frozen=True)
+class OnAxis(EndCondition):
+    """The end on the reference curve and free to tilt (a pin: the bit on the hole axis):
+    ``Delta1 = Delta2 = 0`` and no bending moment, ``u . K1 = u . K2 = 0`` (``u = alpha (r' x r'')/|r'|^3``, the
+    curvature of the rod: ``EI u`` is its moment)."""
+
+    kind = "position"
+    affine = False
+
+    def rows(self, model, z, p, end):
+        from .rod import Jet
+        zz = z.reshape(z.shape[0], -1)
+        S = np.full(zz.shape[1], model.interval[end])
+        if model.constant_frame:
+            k = np.zeros((3, 3, zz.shape[1]))
+        else:
+            k = model._curve_data(S)[0]
+        factors = None if model.sections is None else model.sections.factors(S)
+        q = model._joint_quantities(k, zz, p, factors)
+        shape = z.shape[1:]
+        return [z[Jet.D1[0]], z[Jet.D2[0]], q[2].reshape(shape), q[3].reshape(shape)]
+
+
 def _check_condition(c, end):
     if not isinstance(c, EndCondition):
-        raise TypeError(f"an end condition must be a rodcont.ends.EndCondition (Clamp(), Rotation(), Torque(M), "
-                        f"Tension(), UnstressedLength(l0), Phase()), got {c!r}")
+        raise TypeError(f"an end condition must be a rodcont.ends.EndCondition (Clamp(), OnAxis(), Rotation(), "
+                        f"Torque(M), Tension(), UnstressedLength(l0), Phase()), got {c!r}")
     if end not in c.ends:
         raise ValueError(f"{type(c).__name__} is available at S = L only (the rotation datum phi = 0 and the "
                          f"clamp are at S = 0)")
@@ -254,3 +277,46 @@ class RodEnds:
     @property
     def is_default(self) -> bool:
         return self == RodEnds()
+
+
+# --------------------------------------------------------------------------
+# The ends as a rig sees them (a drill string in a well: S = 0 at the rig, S = L at the bit)
+# --------------------------------------------------------------------------
+def rig_ends(bit_torque: float = 0.0, bit: str = "on-axis") -> RodEnds:
+    """A drill string's ends: at the rig (``S = 0``) the clamp and the rotation datum ``phi(0) = 0``; at the bit
+    (``S = L``) the bit on the hole axis (:class:`OnAxis`, free to tilt; ``bit="clamp"``: :class:`Clamp`), the
+    bit torque ``M`` (the rock resists the clockwise turn: the internal torque ``m(L) = -M``, :class:`Torque`;
+    the string's wind-up ``phi_L`` is solved for) and the axial force at the bit ``F . K3(L) = T``
+    (:class:`Tension`: ``T = -WOB`` on bottom, 0 off bottom, :func:`bit_force`)."""
+    position = {"on-axis": OnAxis(), "clamp": Clamp()}.get(bit)
+    if position is None:
+        raise ValueError(f"bit must be 'on-axis' or 'clamp', got {bit!r}")
+    return RodEnds(start=(Clamp(), Rotation()), end=(position, Torque(-float(bit_torque)), Tension()))
+
+
+def bit_force(wob: float = 0.0) -> float:
+    """The axial force at the bit, ``T = -WOB`` (weight on bit a compression; 0 off bottom)."""
+    if not (np.isfinite(wob) and wob >= 0):
+        raise ValueError(f"the weight on bit must be a non-negative number, got {wob!r}")
+    return -float(wob)
+
+
+def axial_force_and_torque(model, disc, x, p, S) -> tuple:
+    """The axial force ``F . d3`` (tension positive) and the torque the string above ``S`` turns the string
+    below with, ``M = -m`` (positive for a clockwise drive seen from above), at the points ``S``."""
+    from .rod import Jet, _dot
+    S = np.atleast_1d(np.asarray(S, float))
+    p = disc.full_params(x, p)
+    z = (disc.jet_matrix(S) @ x).reshape(model.problem.jet_size, S.size)
+    m, _, _, d3 = model._axial_quantities(S, z, p)
+    return _dot(z[Jet.F], d3), -m
+
+
+def hook_load(model, disc, x, p) -> float:
+    """The axial force at the rig, ``F . d3(0)`` (the travelling block's own weight excluded)."""
+    return float(axial_force_and_torque(model, disc, x, p, [model.interval[0]])[0][0])
+
+
+def surface_torque(model, disc, x, p) -> float:
+    """The torque at the rig, ``M(0) = -m(0)``."""
+    return float(axial_force_and_torque(model, disc, x, p, [model.interval[0]])[1][0])

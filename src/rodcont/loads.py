@@ -41,7 +41,9 @@ class Kinematics:
     the weight's direction in the local frame (``(3, 1)`` on the straight
     reference, ``(3, npts)`` on a moving frame), ``deflection`` the rows
     ``(Delta1, Delta2)`` of the jets, ``cache`` shared by the loads of one
-    evaluation (the wall pressure, for a friction law).
+    evaluation (the wall pressure, for a friction law), ``w`` the weight per
+    unstressed length at the points where it varies (a rod of
+    :class:`rodcont.rod.Sections`; None: the parameter ``w``).
     """
 
     S: np.ndarray
@@ -53,6 +55,7 @@ class Kinematics:
     gK: np.ndarray
     deflection: tuple
     cache: dict = field(default_factory=dict)
+    w: object = None
 
 
 class DistributedLoad:
@@ -86,7 +89,7 @@ class Weight(DistributedLoad):
     params = ("w",)
 
     def force(self, k: Kinematics):
-        return (k.p[2] * k.n / k.alpha) * k.gK
+        return ((k.p[2] if k.w is None else k.w) * k.n / k.alpha) * k.gK
 
     def __repr__(self):
         return "Weight()"
@@ -130,3 +133,147 @@ class WallContact(DistributedLoad):
 
     def __repr__(self):
         return f"WallContact({self.wall.spec!r}, scale={self.scale!r})"
+
+
+# --------------------------------------------------------------------------
+# Friction on the wall, set by the rig's operation
+# --------------------------------------------------------------------------
+#: the speed below which the motion is smoothed (m/s): the friction's direction ``v / sqrt(|v|^2 + v_s^2)``
+#: is analytic through ``v = 0`` and vanishes there, as the contact law is analytic through ``p = 0``
+SMOOTH_SPEED = 1e-6
+
+#: the rig operations: trip speed ``V`` (m/s, > 0 out of the hole) and rotation rate (rpm); only the ratio
+#: ``V : Omega r`` enters the friction (the velocity-vector method)
+OPERATIONS = {"pick-up": (1.0, 0.0), "slack-off": (-1.0, 0.0), "rotate": (0.0, 60.0), "drill": (0.0, 60.0),
+              "static": (0.0, 0.0)}
+
+
+@dataclass(frozen=True)
+class Operation:
+    """The string's motion in the hole, the same at every point (a rigid trip and turn): trip speed ``V``
+    (m/s, positive out of the hole: pick-up; negative: slack-off) and rotation rate ``rpm`` (positive
+    clockwise seen from above, i.e. about the down-hole tangent ``d3``). At the contact the string's surface
+    slides with ``(V, Omega r)`` (axial, circumferential; ``Omega = 2 pi rpm / 60``, ``r`` its outer radius) and
+    the friction ``mu p`` is split along them::
+
+        s_a = V / sqrt(V^2 + (Omega r)^2 + v_s^2),   s_r = Omega r / sqrt(V^2 + (Omega r)^2 + v_s^2)
+
+    (``v_s`` = :data:`SMOOTH_SPEED`: both vanish when the string is at rest, ``static``).
+    ``drill`` is ``rotate`` with the bit on bottom (its WOB and bit torque are end conditions)."""
+
+    name: str = "static"
+    trip_speed: float = 0.0
+    rpm: float = 0.0
+
+    @classmethod
+    def named(cls, name: str, trip_speed: float | None = None, rpm: float | None = None) -> "Operation":
+        """An operation of :data:`OPERATIONS` by name; ``trip_speed``/``rpm`` replace its motion (combined)."""
+        if name not in OPERATIONS:
+            raise ValueError(f"unknown operation {name!r}: one of {', '.join(OPERATIONS)}")
+        V, rpm0 = OPERATIONS[name]
+        return cls(name, float(V if trip_speed is None else trip_speed), float(rpm0 if rpm is None else rpm))
+
+    @property
+    def omega(self) -> float:
+        return 2.0 * np.pi * self.rpm / 60.0
+
+    def split(self, r):
+        """``(s_a, s_r)`` at the outer radius ``r`` (number or array)."""
+        vr = self.omega * np.asarray(r, float)
+        speed = np.sqrt(self.trip_speed**2 + vr * vr + SMOOTH_SPEED**2)
+        return self.trip_speed / speed, vr / speed
+
+    @property
+    def rotating(self) -> bool:
+        return self.rpm != 0.0
+
+
+def _stations(value, what: str):
+    """A number, or stations ``((S_from, value), ...)`` (piecewise constant, each from its ``S`` on) as arrays
+    ``(S, values)``; the first station's value also holds before it."""
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return np.zeros(1), np.array([float(value)])
+    try:
+        rows = np.array([[float(a), float(b)] for a, b in value])
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a number or stations [(S, value), ...], got {value!r}") from None
+    if rows.shape[0] < 1 or not np.all(np.isfinite(rows)) or np.any(np.diff(rows[:, 0]) <= 0):
+        raise ValueError(f"the stations of {what} must be finite with S strictly increasing")
+    return rows[:, 0], rows[:, 1]
+
+
+class Friction(DistributedLoad):
+    """Coulomb friction of factor ``mu`` on the wall's normal force ``p`` (per unit ``S``, read from the rod's
+    :class:`WallContact`), opposing the string's sliding on the wall (:class:`Operation`)::
+
+        f = mu p s_a d3              (axial: the force balance, F' + ... + f = 0)
+        l = -mu p r s_r d3           (about the axis: m' = mu p r s_r, so the torque is a field)
+
+    ``r`` the string's outer radius (where it touches the wall). Sign conventions: ``F . d3 > 0`` is tension,
+    ``d3`` points down-hole; pick-up (``s_a > 0``) drags the string down-hole, so the axial force grows towards
+    the rig; the rig turns the string about ``d3`` and the internal torque ``m`` is negative: the surface torque
+    is ``M = -m(0)``, with ``dM/dS = -mu p r s_r`` (the soft-string ``dM/ds = -s_r mu |N| r``). Not modelled: the
+    circumferential friction force on the axis (it makes a turning string climb the wall) and the moment of
+    the axial friction about the section (``r mu p``, across the axis).
+
+    ``mu`` and ``radius``: numbers or stations ``((S, value), ...)``, piecewise constant (cased and open hole;
+    a string's sections): their stations are mesh breakpoints.
+    """
+
+    reads_deflection = True
+
+    def __init__(self, mu, radius, operation: Operation | str = "static"):
+        self.mu_table = _stations(mu, "the friction factor")
+        self.r_table = _stations(radius, "the string's outer radius")
+        if np.any(self.mu_table[1] < 0) or np.any(self.r_table[1] <= 0):
+            raise ValueError("the friction factor must be non-negative and the outer radius positive")
+        self.operation = Operation.named(operation) if isinstance(operation, str) else operation
+        if not isinstance(self.operation, Operation):
+            raise TypeError(f"operation must be a rodcont.loads.Operation or a name, got {operation!r}")
+        self._wall = None
+
+    def bind(self, model) -> None:
+        wall = getattr(model, "_wall_load", None)
+        if wall is None:
+            raise ValueError("friction acts on a wall's force: the rod needs a conduit (wall=)")
+        self._wall = wall
+
+    @staticmethod
+    def _at(table, S):
+        at, values = table
+        i = np.clip(np.searchsorted(at, np.real(np.asarray(S)), side="right") - 1, 0, values.size - 1)
+        return values[i]
+
+    def mu(self, S):
+        """The friction factor at ``S``."""
+        return self._at(self.mu_table, S)
+
+    def radius(self, S):
+        """The outer radius at ``S``."""
+        return self._at(self.r_table, S)
+
+    def shares(self, S):
+        """``(mu s_a, mu s_r r)`` at ``S``: the axial friction and the friction moment per unit wall force."""
+        r = self.radius(S)
+        s_a, s_r = self.operation.split(r)
+        mu = self.mu(S)
+        return mu * s_a, mu * s_r * r
+
+    def force(self, k: Kinematics):
+        axial, _ = self.shares(k.S)
+        if not np.any(axial):
+            return None
+        return (axial * self._wall.pressure(k)) * k.d3
+
+    def moment(self, k: Kinematics):
+        _, turn = self.shares(k.S)
+        if not np.any(turn):
+            return None
+        return -(turn * self._wall.pressure(k)) * k.d3
+
+    def stations(self, a: float, b: float) -> list:
+        return [float(S) for S in np.concatenate([self.mu_table[0], self.r_table[0]]) if a < S < b]
+
+    def __repr__(self):
+        return (f"Friction(mu={list(zip(*self.mu_table))!r}, radius={list(zip(*self.r_table))!r}, "
+                f"operation={self.operation!r})")

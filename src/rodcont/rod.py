@@ -244,6 +244,45 @@ class RodParameters:
         return asdict(self)
 
 
+class Sections:
+    """A rod made of sections (a drill string: collars, heavy-weight pipe, drill pipe): piecewise-constant
+    weight and stiffnesses, each the parameter's value times a section's factor.
+
+    ``boundaries``: the ``n - 1`` interior points ``S`` (increasing) where one section ends and the next begins;
+    ``factors``: ``(n, 4)`` factors of ``w, EI, GJ, EA``, one row per section from ``S = 0`` on. The local
+    values are ``w(S) = w f_w(S)``, ``EI(S) = EI f_EI(S)``, ... (``w, EI, GJ, EA`` the parameters: a trace in
+    ``EI`` scales every section). Each boundary is a join of the rod (as a well's stations are): the fields are
+    C^0 there, and the interface conditions are the continuity of ``d3``, of the moment ``EI u`` and of the
+    torque ``m`` (the physical rod has no point load there).
+    """
+
+    def __init__(self, boundaries, factors):
+        b = np.asarray(boundaries, float).reshape(-1)
+        f = np.asarray(factors, float)
+        if f.ndim != 2 or f.shape != (b.size + 1, 4):
+            raise ValueError(f"sections: factors must be (len(boundaries) + 1, 4) (w, EI, GJ, EA), got {f.shape}")
+        if not (np.all(np.isfinite(b)) and np.all(np.diff(b) > 0)):
+            raise ValueError("sections: the boundaries must be finite and strictly increasing")
+        if not (np.all(np.isfinite(f)) and np.all(f[:, 1:] > 0) and np.all(f[:, 0] >= 0)):
+            raise ValueError("sections: the stiffness factors must be positive, the weight's non-negative")
+        self.boundaries, self.table = b, f
+
+    def factors(self, S, side: int = 0) -> np.ndarray:
+        """``(4, npts)`` factors of ``w, EI, GJ, EA`` at ``S`` (``side`` -1 / +1: just left / right of ``S``)."""
+        S = np.real(np.asarray(S))
+        i = np.searchsorted(self.boundaries, S, side="left" if side < 0 else "right")
+        return self.table[i].T
+
+    def __eq__(self, other):
+        return isinstance(other, Sections) and np.array_equal(self.boundaries, other.boundaries) \
+            and np.array_equal(self.table, other.table)
+
+    __hash__ = None
+
+    def __repr__(self):
+        return f"Sections({self.boundaries.tolist()!r}, {self.table.tolist()!r})"
+
+
 # --------------------------------------------------------------------------
 # The model
 # --------------------------------------------------------------------------
@@ -275,11 +314,14 @@ class EulerianRod:
     """
 
     def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None, wall=None,
-                 loads=None, ends=None):
+                 loads=None, ends=None, sections: "Sections | None" = None):
         from .ends import RodEnds
         self.rod = rod or RodParameters()
         if not isinstance(self.rod, RodParameters):
             raise TypeError(f"rod must be a RodParameters, got {self.rod!r}")
+        if sections is not None and not isinstance(sections, Sections):
+            raise TypeError(f"sections must be a rodcont.rod.Sections, got {sections!r}")
+        self.sections = sections
         self.curve = curve or StraightReference(self.rod.L)
         if not isinstance(self.curve, ReferenceCurve):
             raise TypeError(f"curve must be a rodcont.curves.ReferenceCurve, got {self.curve!r}")
@@ -294,6 +336,11 @@ class EulerianRod:
         self.constant_frame = bool(self.curve.constant_frame)
         self.g = np.asarray(self.rod.weight_direction, float)
         unused = self._set_frame()
+        if sections is not None:  # a section boundary is a join: the stiffness jumps there
+            a, b = self.interval
+            inner = [S for S in sections.boundaries if a < S < b]
+            self.joins = np.unique(np.concatenate([self.joins, inner])) if inner else self.joins
+            self._join_curve_cache = getattr(self, "_join_curve_cache", {})
         if any(load.reads_deflection for load in self.loads):  # the contact force reads the deflection itself
             unused = (Jet.PHI[0],)
         # mesh breakpoints: a well's stations (its curvature jumps) and a clearance table's (its slope jumps)
@@ -302,6 +349,7 @@ class EulerianRod:
             stations += list(self.curve.breakpoints)
         for load in self.loads:
             stations += list(load.stations(*self.interval))
+        stations += list(self.joins)
         self.stations = np.unique(np.asarray(stations, float))
         self._set_problem([j for j in range(Jet.SIZE) if j not in unused])
 
@@ -382,7 +430,8 @@ class EulerianRod:
         used = {"EI", "GJ", "EA"}.union(*(load.params for load in self.loads))
         # the hand-derived derivatives cover the straight rod under its weight alone; every other case takes
         # the complex step of its residual
-        self.weight_only = self.constant_frame and [type(load) for load in self.loads] == [Weight]
+        self.weight_only = self.constant_frame and [type(load) for load in self.loads] == [Weight] \
+            and self.sections is None
         integrals = {}
         if self.ends.has_integrals:
             extra = [Jet.D1[0], Jet.D2[0]] if any(getattr(c, "integral_jets", "") == "deflection"
@@ -411,6 +460,19 @@ class EulerianRod:
             # columns of dG that jacobian fills by blocks, as slices (writes through views, no fancy indexing)
             pos = self._jet_pos
             self._dG_cols = (_evenly(pos[list(_SEED_JETS)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
+
+    # ---- sections: piecewise-constant stiffness and weight ----------------------------
+    def _stiffness(self, S, p):
+        """``w, EI, GJ, EA`` at the points ``S``: the parameters, times the sections' factors (:class:`Sections`)."""
+        phi_L, T, w, EI, GJ, EA = p[:6]
+        if self.sections is None:
+            return w, EI, GJ, EA
+        f = self.sections.factors(S)
+        return w * f[0], EI * f[1], GJ * f[2], EA * f[3]
+
+    def _local_weight(self, w) -> dict:
+        """The weight per length the loads read (:class:`rodcont.loads.Kinematics` ``w``), where it varies."""
+        return {} if self.sections is None else {"w": w}
 
     # ---- the wall, one of the loads ------------------------------------------------
     @property
@@ -469,7 +531,7 @@ class EulerianRod:
         """Pointwise residual ``(6, npts)`` of the Eulerian equations (frame components)."""
         if not self.constant_frame:
             return self._residual_curved(S, z, p)
-        phi_L, T, w, EI, GJ, EA = p[:6]
+        w, EI, GJ, EA = self._stiffness(S, p)
         r1, r2, r3, F, Fp, phi1, phi2 = self._straight_jets(z)
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(F, d3) / EA
@@ -487,7 +549,7 @@ class EulerianRod:
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        k = Kinematics(S, z, p, n, alpha, d3, self.gK[:, None], _deflection(z))
+        k = Kinematics(S, z, p, n, alpha, d3, self.gK[:, None], _deflection(z), **self._local_weight(w))
         EF, EM, torque = self._add_loads(k, Fp, EM, mp)
         return _equations(EF, EM, torque / GJ)
 
@@ -718,7 +780,7 @@ class EulerianRod:
         The moment equations are still projected on ``K1, K2`` (the first two
         local components).
         """
-        phi_L, T, w, EI, GJ, EA = p[:6]
+        w, EI, GJ, EA = self._stiffness(S, p)
         (r1, r2, r3), k, gK = self._curved_jets(S, z)
         F = z[Jet.F]
         Fp = z[Jet.FP]
@@ -748,12 +810,13 @@ class EulerianRod:
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK, _deflection(z)), Ft, EM, mp)
+        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK, _deflection(z),
+                                                    **self._local_weight(w)), Ft, EM, mp)
         return _equations(EF, EM, torque / GJ)
 
     def _axial_curved(self, S, z, p):
         """:meth:`_axial_quantities` with a moving frame."""
-        phi_L, T, w, EI, GJ, EA = p[:6]
+        w, EI, GJ, EA = self._stiffness(S, p)
         (r1, r2, _), k, _ = self._curved_jets(S, z)
         n = np.sqrt(_dot(r1, r1))
         d3 = r1 / n
@@ -776,6 +839,9 @@ class EulerianRod:
         ``m / GJ`` (the torque). Each side reads the reference's curvature on its own side.
         """
         kl, kr = self._join_curvatures(S)
+        if self.sections is not None:  # the moment EI u and the torque m are continuous where EI, GJ jump
+            fl, fr = self.sections.factors(S, -1), self.sections.factors(S, 1)
+            return self._joint_quantities(kl, zl, p, fl) - self._joint_quantities(kr, zr, p, fr)
         return self._joint_quantities(kl, zl, p) - self._joint_quantities(kr, zr, p)
 
     def _join_curvatures(self, S):
@@ -792,17 +858,24 @@ class EulerianRod:
         return hit
 
     @staticmethod
-    def _joint_quantities(k, z, p):
+    def _joint_quantities(k, z, p, factors=None):
         """``(d3.K1, d3.K2, u.K1, u.K2, m/GJ)`` from jets ``z`` with the curvatures ``k``: ``u = alpha (r' x r'')/n^3``
-        (``= d3 x d3_s``), ``m/GJ = alpha/n (phi' + tau_q)`` as in :meth:`_residual_curved`."""
+        (``= d3 x d3_s``), ``m/GJ = alpha/n (phi' + tau_q)`` as in :meth:`_residual_curved`. With a side's section
+        ``factors`` (:meth:`Sections.factors`: of ``w, EI, GJ, EA``) ``u`` and ``m/GJ`` are scaled by that side's
+        ``EI`` and ``GJ`` factors (the moment and the torque over the reference stiffnesses)."""
         phi_L, T, w, EI, GJ, EA = p[:6]
+        if factors is not None:
+            EA = EA * factors[3]
         r1, r2, r3 = frame_jets(k, z[list(Jet.D1)], z[list(Jet.D2)])
         n2, n, n3, c, d3, d3p, d3pp = _director_jets(r1, r2, r3)
         alpha = 1.0 + _dot(z[Jet.F], d3) / EA
         u = (alpha / n3) * _cross2(r1, r2)
         k1, k2, k3 = k[0, 0], k[1, 0], k[2, 0]
         tau = k3 + (k1 * d3[1] - k2 * d3[0] - (d3[0] * d3p[1] - d3[1] * d3p[0])) / (1.0 + d3[2])
-        return np.stack([d3[0], d3[1], u[0], u[1], alpha / n * (z[Jet.PHI[1]] + tau)])
+        twist = alpha / n * (z[Jet.PHI[1]] + tau)
+        if factors is not None:
+            u, twist = u * factors[1], twist * factors[2]
+        return np.stack([d3[0], d3[1], u[0], u[1], twist])
 
     def discretise(self, N: int = 15, k: int = 5, breakpoints=None) -> Collocation:
         """Collocation on ``N`` uniform subintervals of ``[0, curve.length]`` (or on ``breakpoints``).
@@ -961,7 +1034,7 @@ class EulerianRod:
         """Torque ``m``, stretch ``alpha``, ``n = |r'|`` and ``d3`` (frame components) at points ``S``."""
         if not self.constant_frame:
             return self._axial_curved(S, z, p)
-        phi_L, T, w, EI, GJ, EA = p[:6]
+        w, EI, GJ, EA = self._stiffness(S, p)
         r1, r2, _ = self._frame_jets(z)
         n = np.sqrt(_dot(r1, r1))
         d3 = r1 / n

@@ -53,6 +53,9 @@ class RodSystem:
     then be the continued parameter. ``T`` under length control is only the first guess (default the
     straight rod's, ``EA (L/l0 - 1)``). A solution is stored without those entries (:meth:`stored`: the
     fields' coefficients, the same layout under every control) and read back by :meth:`expanded`.
+
+    ``loads`` and ``sections``: the model's (:class:`rodcont.rod.EulerianRod`; default its weight, and the
+    wall's force with ``wall``; one section).
     """
 
     #: the LU of the whole bordered matrix: the rod's border does not fill it, and block elimination
@@ -61,7 +64,7 @@ class RodSystem:
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
-                 curve=None, wall=None, ends=None):
+                 curve=None, wall=None, ends=None, loads=None, sections=None):
         from .ends import RodEnds, UnstressedLength
         ends = RodEnds() if ends is None else ends
         if not isinstance(ends, RodEnds):
@@ -80,7 +83,7 @@ class RodSystem:
         if param == "gamma" and rod.w == 0:
             raise ValueError("gamma = T / (w L) is undefined for a weightless rod: continue in T")
         self.rod = rod
-        self.model = EulerianRod(rod, curve, wall, ends=ends)
+        self.model = EulerianRod(rod, curve, wall, ends=ends, loads=loads, sections=sections)
         self.ends = ends
         self.wall = wall
         self.curve = self.model.curve

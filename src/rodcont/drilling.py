@@ -1,0 +1,511 @@
+"""A drill string in a surveyed well: sections, buoyancy, bit depth, and torque and drag with the stiff string.
+
+Conventions (``/work/shared/DRILLING.md``): the well's reference curve is its survey by minimum curvature
+(:class:`rodcont.curves.MinimumCurvatureWell`, axes ``e1, e2, e3`` = east, north, up; TVD ``= -z``), its
+arclength ``S`` the measured depth MD, ``S = 0`` at the rig and ``S = L`` at the bit. The axial force is
+positive in tension; the hook load is the axial force at the rig, the weight on bit a compression at the bit.
+
+* :class:`DrillString`: sections from the bit up (bottom-hole assembly, heavy-weight pipe, drill pipe), each
+  with its length, ``EI, GJ, EA``, weight per length (or outer and inner diameter and the steel's constants)
+  and outer radius; buoyed in the mud (``w = w_air (1 - rho_mud / rho_steel)``, or a buoyancy factor).
+  Read from TOML (:meth:`DrillString.from_toml`, ``examples/drill_string.toml``).
+* :class:`Well`: the survey, the hole's diameter and the friction factor (numbers or MD stations: cased and
+  open hole), the contact law's smoothing; read from TOML (``examples/well_s3d.toml``).
+* :func:`torque_and_drag`: the equilibrium of the string with its bit at a measured depth, for an operation
+  (:class:`rodcont.loads.Operation`), with Coulomb friction (:class:`rodcont.loads.Friction`), the rig's end
+  conditions (:func:`rodcont.ends.rig_ends`), each section's clearance ``hole radius - its radius`` and the
+  section boundaries as joins (:class:`rodcont.rod.Sections`); returns a :class:`TorqueDrag`.
+* :func:`soft_string`: the soft-string (Johancsik) estimate on the same well path, the broomstick's second curve.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .contact import Wall
+from .loads import Operation
+
+STEEL = dict(E=207e9, G=80e9, density=7850.0)
+GRAVITY = 9.80665
+
+
+class DrillingError(ValueError):
+    """A string or well file, or a depth, that cannot be used (one line)."""
+
+
+@dataclass(frozen=True)
+class Section:
+    """One section of the string: ``length`` (m, None: up to the rig), ``EI, GJ`` (N m^2), ``EA`` (N), weight per
+    length in air ``w_air`` (N/m) and outer radius ``radius`` (m, where it touches the wall)."""
+
+    name: str
+    length: float | None
+    EI: float
+    GJ: float
+    EA: float
+    w_air: float
+    radius: float
+
+
+def _section(row: dict, steel: dict, where: str) -> Section:
+    """A section from a TOML table: stiffnesses and weight given, or from ``od``/``id`` and the steel."""
+    known = {"name", "length", "od", "id", "EI", "GJ", "EA", "w_air", "radius"}
+    unknown = sorted(set(row) - known)
+    if unknown:
+        raise DrillingError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+    for key, v in row.items():
+        if key != "name" and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                              or not v > 0):
+            raise DrillingError(f"{where}: {key} must be a positive number, got {v!r}")
+    od, idia = row.get("od"), row.get("id", 0.0)
+    if od is not None and not idia < od:
+        raise DrillingError(f"{where}: id {idia!r} must be smaller than od {od!r}")
+    derived = {}
+    if od is not None:
+        A = math.pi / 4 * (od**2 - idia**2)
+        Ia = math.pi / 64 * (od**4 - idia**4)
+        derived = dict(EI=steel["E"] * Ia, GJ=steel["G"] * 2 * Ia, EA=steel["E"] * A,
+                       w_air=steel["density"] * GRAVITY * A, radius=od / 2)
+    values = {key: float(row[key]) if key in row else derived.get(key) for key in ("EI", "GJ", "EA", "w_air", "radius")}
+    missing = [key for key, v in values.items() if v is None]
+    if missing:
+        raise DrillingError(f"{where}: needs od (and id) or {', '.join(missing)}")
+    length = row.get("length")
+    return Section(str(row.get("name", where)), None if length is None else float(length), **values)
+
+
+@dataclass(frozen=True)
+class DrillString:
+    """Sections from the bit up (the last may have ``length=None``: it runs to the rig) and the buoyancy factor
+    ``1 - rho_mud / rho_steel`` (a string full of the same mud inside and out)."""
+
+    sections: tuple
+    buoyancy_factor: float = 1.0
+
+    def __post_init__(self):
+        if not self.sections:
+            raise DrillingError("a drill string needs at least one section")
+        if any(s.length is None for s in self.sections[:-1]):
+            raise DrillingError("only the top section may run to the rig (no length)")
+        if not 0 < self.buoyancy_factor <= 1:
+            raise DrillingError(f"the buoyancy factor must lie in (0, 1], got {self.buoyancy_factor!r}")
+
+    @classmethod
+    def from_toml(cls, path: str, mud_density: float | None = None) -> "DrillString":
+        """``[string]`` (``mud_density`` kg/m^3 or ``buoyancy_factor``; ``E, G, density`` of the steel) and one
+        ``[[section]]`` per section from the bit up; ``mud_density`` given here replaces the file's."""
+        doc = _read_toml(path, "string file")
+        head = doc.get("string", {})
+        unknown = sorted(set(head) - {"mud_density", "buoyancy_factor", "E", "G", "density"})
+        if unknown or not isinstance(doc.get("section"), list):
+            raise DrillingError(f"{path}: needs [string] (mud_density or buoyancy_factor, E, G, density) and "
+                                f"[[section]] tables" + (f"; unknown key(s) {', '.join(unknown)}" if unknown else ""))
+        steel = {key: float(head.get(key, v)) for key, v in STEEL.items()}
+        sections = tuple(_section(row, steel, f"{path}: section {i + 1}") for i, row in enumerate(doc["section"]))
+        rho = mud_density if mud_density is not None else head.get("mud_density")
+        bf = head.get("buoyancy_factor", 1.0) if rho is None else 1.0 - float(rho) / steel["density"]
+        try:
+            return cls(sections, float(bf))
+        except DrillingError as exc:
+            raise DrillingError(f"{path}: {exc}") from None
+
+    def spans(self, depth: float) -> list:
+        """``(top, bottom, section)`` in ``S`` from the rig down (the string cut at the rig), for the bit at
+        ``depth``."""
+        out, bottom = [], float(depth)
+        for s in self.sections:
+            top = 0.0 if s.length is None else max(bottom - s.length, 0.0)
+            out.append((top, bottom, s))
+            bottom = top
+            if top <= 0.0:
+                return out[::-1]
+        raise DrillingError(f"the string ({depth - bottom:g} m) does not reach the rig from the bit at {depth:g} m: "
+                            f"give the top section no length")
+
+
+def _read_toml(path: str, what: str) -> dict:
+    import tomllib
+    from .safeio import InputFileError, read_input
+    try:
+        return tomllib.loads(read_input(path, "toml", what=what).decode("utf-8"))
+    except InputFileError as exc:
+        raise DrillingError(str(exc)) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise DrillingError(f"{path}: not a TOML file ({' '.join(str(exc).split())})") from None
+
+
+def _table(value, what: str, where: str):
+    """A number or MD stations ``[[MD, value], ...]`` (piecewise constant from each MD on), as given."""
+    from .loads import _stations
+    try:
+        _stations(value, what)
+    except ValueError as exc:
+        raise DrillingError(f"{where}: {exc}") from None
+    return float(value) if isinstance(value, (int, float)) else tuple((float(a), float(b)) for a, b in value)
+
+
+@dataclass(frozen=True)
+class Well:
+    """Survey stations ``(MD, inclination, azimuth)`` (degrees), the hole diameter (m; a number or MD
+    stations ``((MD, d), ...)``: casing to its shoe, open hole below), the friction factor (number or MD
+    stations) and the contact law's smoothing ``eps`` (:class:`rodcont.contact.Wall`)."""
+
+    stations: np.ndarray
+    hole_diameter: float | tuple = 0.2159
+    friction: float | tuple = 0.25
+    eps: float = 1e-5
+
+    @classmethod
+    def from_toml(cls, path: str) -> "Well":
+        """``[well]``: ``survey`` (a CSV of MD, INC, AZI, relative to the file), ``hole_diameter``, ``friction``,
+        ``eps``."""
+        from .curves import MinimumCurvatureWell
+        doc = _read_toml(path, "well file")
+        sec = doc.get("well")
+        if not isinstance(sec, dict) or "survey" not in sec:
+            raise DrillingError(f"{path}: needs a [well] section with survey = FILE.csv")
+        unknown = sorted(set(sec) - {"survey", "hole_diameter", "friction", "eps"})
+        if unknown:
+            raise DrillingError(f"{path}: unknown key(s) {', '.join(unknown)} in [well] (known: survey, "
+                                f"hole_diameter, friction, eps)")
+        survey = os.path.join(os.path.dirname(os.path.abspath(path)), str(sec["survey"]))
+        try:
+            stations = MinimumCurvatureWell.from_file(survey).stations
+        except (ValueError, OSError) as exc:
+            raise DrillingError(f"{path}: survey {sec['survey']}: {exc}") from None
+        eps = sec.get("eps", 1e-5)
+        if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 1e-12 <= eps <= 0.1:
+            raise DrillingError(f"{path}: eps must be a number in 1e-12 .. 0.1, got {eps!r}")
+        return cls(np.asarray(stations, float), _table(sec.get("hole_diameter", 0.2159), "hole_diameter", path),
+                   _table(sec.get("friction", 0.25), "friction", path), float(eps))
+
+    @property
+    def total_depth(self) -> float:
+        return float(self.stations[-1, 0] - self.stations[0, 0])
+
+    def curve(self, depth: float):
+        """The well path from the rig to the bit at MD ``depth`` (the survey cut there on its arc)."""
+        from .curves import MinimumCurvatureWell
+        st = self.stations
+        md = st[0, 0] + float(depth)
+        if not 0 < depth <= self.total_depth * (1 + 1e-12):
+            raise DrillingError(f"the bit depth {depth:g} m lies outside the survey (0 .. {self.total_depth:g} m)")
+        keep = st[st[:, 0] < md - 1e-9 * max(1.0, md)]
+        if keep.shape[0] == 0 or abs(st[keep.shape[0], 0] - md) <= 1e-9 * max(1.0, md):
+            return MinimumCurvatureWell(np.vstack([keep, st[keep.shape[0]]]))
+        return MinimumCurvatureWell(np.vstack([keep, _station_on_arc(st[keep.shape[0] - 1], st[keep.shape[0]], md)]))
+
+
+def _station_on_arc(a, b, md):
+    """The survey station at MD ``md`` on the minimum-curvature arc from station ``a`` to ``b``."""
+    def tangent(inc, azi):
+        i, z = math.radians(inc), math.radians(azi)
+        return np.array([math.sin(i) * math.sin(z), math.sin(i) * math.cos(z), -math.cos(i)])
+    t1, t2 = tangent(a[1], a[2]), tangent(b[1], b[2])
+    x = (md - a[0]) / (b[0] - a[0])
+    beta = 2.0 * math.asin(min(1.0, 0.5 * float(np.linalg.norm(t2 - t1))))
+    t = t1 if beta < 1e-14 else (math.sin((1 - x) * beta) * t1 + math.sin(x * beta) * t2) / math.sin(beta)
+    inc = math.degrees(math.acos(max(-1.0, min(1.0, -t[2]))))
+    azi = math.degrees(math.atan2(t[0], t[1])) % 360.0 if math.hypot(t[0], t[1]) > 1e-12 else float(a[2])
+    return np.array([md, inc, azi])
+
+
+# --------------------------------------------------------------------------
+# The string in the well: the rod's data
+# --------------------------------------------------------------------------
+def _value_at(table, S):
+    """A number, or MD stations (piecewise constant, the first value before them), at ``S``."""
+    if isinstance(table, float):
+        return np.full(np.shape(S), table)
+    at = np.array([a for a, _ in table])
+    v = np.array([b for _, b in table])
+    return v[np.clip(np.searchsorted(at, S, side="right") - 1, 0, v.size - 1)]
+
+
+@dataclass
+class StringInWell:
+    """What the rod model needs for the string with its bit at ``depth``: the curve, the rod's reference values
+    (the section at the rig), the sections' factors, the outer radius and the clearance at MD stations."""
+
+    curve: object
+    rod: object
+    sections: object
+    spans: list
+    radius: tuple       # ((S_from, r), ...)
+    clearance: object   # c, or steps ((S, c), ...) (SteppedWall)
+    weights: tuple      # ((S_from, buoyed w), ...)
+
+    @property
+    def w_max(self) -> float:
+        return max(w for _, w in self.weights)
+
+
+def place_string(well: Well, string: DrillString, depth: float) -> StringInWell:
+    """The string with its bit at MD ``depth``: sections as :class:`rodcont.rod.Sections` (factors over the
+    section at the rig), clearance ``hole radius - outer radius`` section by section."""
+    from .rod import RodParameters, Sections
+    curve = well.curve(depth)
+    L = curve.length
+    spans = string.spans(L)
+    bf = string.buoyancy_factor
+    top = spans[0][2]
+    rod = RodParameters(EI=top.EI, GJ=top.GJ, EA=top.EA, w=top.w_air * bf, L=curve.span)
+    table = [(s.w_air / top.w_air, s.EI / top.EI, s.GJ / top.GJ, s.EA / top.EA) for _, _, s in spans]
+    bounds = [a for a, _, _ in spans[1:]]
+    sections = Sections(bounds, table) if bounds else None
+    radius = tuple((a, s.radius) for a, _, s in spans)
+    weights = tuple((a, s.w_air * bf) for a, _, s in spans)
+    return StringInWell(curve, rod, sections, spans, radius, _clearance(well, radius, L), weights)
+
+
+def _clearance(well: Well, radius: tuple, L: float):
+    """``c = hole radius - outer radius``: a number, or steps ``((S, c), ...)`` (each from its ``S`` on, the first at
+    0) where a section's radius or the hole changes (:class:`SteppedWall`)."""
+    steps = sorted({0.0} | {a for a, _ in radius if 0 < a < L}
+                   | ({a for a, _ in well.hole_diameter if 0 < a < L} if isinstance(well.hole_diameter, tuple)
+                      else set()))
+    rows = []
+    for a in steps:
+        c = float(_value_at(well.hole_diameter, np.asarray(a)) / 2 - _value_at(radius, np.asarray(a)))
+        if not c > 0:
+            raise DrillingError(f"the string does not fit in the hole at MD {a:g} m (clearance {c:g} m)")
+        if not rows or c != rows[-1][1]:
+            rows.append((a, c))
+    return rows[0][1] if len(rows) == 1 else tuple(rows + [(L, rows[-1][1])])
+
+
+@dataclass(frozen=True)
+class SteppedWall(Wall):
+    """A hole whose clearance is piecewise constant: ``clearance = ((S0, c0), (S1, c1), ..., (L, c_last))``, each
+    ``c_i`` from ``S_i`` to the next station (the last row closes the table), steps where a section's outer radius
+    or the hole's diameter changes. The steps are the wall's stations (mesh breakpoints: the collocation points
+    never sit on one), no cone between them: the contact law sees each pipe's own clearance right up to its end
+    (a taper would wedge the stiffer pipe across it)."""
+
+    def clearance_at(self, S):
+        t = np.asarray(self.clearance, float)
+        i = np.clip(np.searchsorted(t[:, 0], np.real(np.asarray(S, float)), side="right") - 1, 0, t.shape[0] - 2)
+        return t[i, 1]
+
+    def slope_at(self, S):
+        return np.zeros(np.shape(S))
+
+
+# --------------------------------------------------------------------------
+# Torque and drag: one equilibrium
+# --------------------------------------------------------------------------
+@dataclass
+class TorqueDrag:
+    """One equilibrium of the string: ``hook_load`` (N, the axial force at the rig), ``surface_torque`` (N m),
+    profiles against MD on a fine grid (``profile``: ``S``, ``axial_force``, ``torque``, ``pressure`` the wall force
+    per length, ``gap``, ``in_contact``), ``side_force`` (the wall's total), the contact ``zones``, the error
+    estimate and the mesh size ``N``; ``system``, ``x``: the solved rod (:class:`rodcont.system.RodSystem`)."""
+
+    depth: float
+    operation: Operation
+    mu: float | tuple
+    wob: float
+    bit_torque: float
+    hook_load: float
+    surface_torque: float
+    profile: dict
+    side_force: float
+    zones: list
+    error: float
+    N: int
+    system: object = field(repr=False)
+    x: np.ndarray = field(repr=False)
+    placed: StringInWell = field(repr=False)
+
+    @property
+    def params(self) -> np.ndarray:
+        return self.system.disc.full_params(self.x, self.system.base)
+
+
+def _force_scale(placed: StringInWell, T_bit: float) -> float:
+    """The contact law's ``P``: the heaviest section's weight, and the string's whole weight pulled round the
+    sharpest dogleg (:func:`rodcont.contact.default_force_scale` with that tension)."""
+    from .contact import default_force_scale
+    W = sum(w * (b - a) for (a, w), (_, b, _) in zip(placed.weights, placed.spans))
+    return max(placed.w_max, default_force_scale(placed.rod, abs(T_bit) + W, placed.curve))
+
+
+def build_system(placed: StringInWell, friction, T_bit: float, bit_torque: float, eps: float, N: int, k: int = 5,
+                 bit: str = "on-axis"):
+    """The :class:`rodcont.system.RodSystem` of the placed string: weight, wall (clearance table, smoothing
+    ``eps``, force scale :func:`_force_scale`), the friction load, the rig's ends, the sections as joins."""
+    from .ends import rig_ends
+    from .loads import WallContact, Weight
+    from .system import RodSystem
+    kind = Wall if isinstance(placed.clearance, float) else SteppedWall
+    wall = kind(placed.clearance, eps=eps, force_scale=_force_scale(placed, T_bit))
+    loads = [Weight(), WallContact(wall)] + ([friction] if friction is not None else [])
+    return RodSystem(placed.rod, T=T_bit, N=N, k=k, curve=placed.curve, wall=wall, param="T",
+                     ends=rig_ends(bit_torque, bit), loads=loads, sections=placed.sections)
+
+
+def settle(sysm, x, tol: float = 1e-10):
+    """The equilibrium inside the hole from a guess that may cross its wall: the contact law's smoothing from
+    0.1 down to the wall's own by factors of 10, Newton at each (a factor 100 stalls on a slack string)."""
+    import dataclasses
+    from .drivers.solve import ConvergenceError
+    model, wall = sysm.model, sysm.model.wall
+    stages = [0.1]
+    while stages[-1] / 10 > wall.eps * (1 + 1e-9):
+        stages.append(stages[-1] / 10)
+    stages.append(wall.eps)
+    try:
+        for eps in stages:
+            model.wall = dataclasses.replace(wall, eps=eps)
+            r = sysm.disc.newton(x, sysm.base, tol=tol, max_iter=60)
+            if not r.converged:
+                raise ConvergenceError(f"no equilibrium of the string in the hole (contact smoothing eps = {eps:g}): "
+                                       f"{r.message}")
+            x = r.x
+    finally:
+        model.wall = wall
+    return x
+
+
+def _estimate(sysm, x) -> tuple:
+    """``(error, side force's error, penetration)`` of a solution (:class:`rodcont.mesh.ErrorEstimator`; the
+    penetration as :func:`rodcont.contact.penetration`, but not at a clearance's step: there the law is not
+    collocated, the larger pipe's end carries a point contact and the spline's value at the breakpoint leans into
+    the wall while the law holds on each side; refining, not a stiffer law, resolves it)."""
+    from .mesh import ErrorEstimator
+    est = ErrorEstimator(sysm, watch=True)
+    err = est.estimate(x, sysm.value())
+    con = sysm.model.contact(sysm.disc, x, sysm.base)
+    S, wall = con["S"], sysm.model.wall
+    keep = np.ones(S.size, bool)
+    if isinstance(wall, SteppedWall):
+        steps = np.array([a for a, _ in wall.clearance[1:-1]])
+        keep = np.min(np.abs(S[:, None] - steps[None, :]), axis=1) > 1e-9 * S[-1]
+    pen = float(np.max(-con["gap"][keep] / wall.clearance_at(S[keep])))
+    return err, est.watched.get("side_force", math.nan), pen
+
+
+def adapt(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3, N_max: int = 4000,
+          tol: float = 1e-10):
+    """Refine the mesh (and stiffen the contact law past :data:`rodcont.contact.MAX_PENETRATION`) until the
+    estimates meet their guards, at most eight rounds: ``(system, x, error, side force's error)``."""
+    from .contact import MAX_PENETRATION
+    from .drivers.solve import stiffen_contact
+    from .mesh import adapted_mesh
+    for _ in range(8):
+        err, sf, pen = _estimate(sysm, x)
+        if pen > MAX_PENETRATION:
+            x = stiffen_contact(sysm, x, sysm.base, sysm.model.contact_scale * pen / (MAX_PENETRATION / 10), tol)
+            continue
+        ratio = max(err / max_error, 0.0 if math.isnan(sf) else sf / max_side_force_error)
+        if ratio <= 1.0 or sysm.disc.N >= N_max:
+            return sysm, x, err, sf
+        b = adapted_mesh(sysm.disc.breakpoints, sysm.interval_defect(x, sysm.value()), sysm.disc.k,
+                         ratio * max_error, max_error / 4, N_max=N_max)
+        new = sysm.with_mesh(sysm.conform(b))
+        r = new.disc.newton(new.disc.transfer(x, sysm.disc), new.base, tol=tol)
+        sysm, x = new, (r.x if r.converged else settle(new, new.model.initial_guess(new.disc, new.value()), tol))
+    err, sf, _ = _estimate(sysm, x)
+    return sysm, x, err, sf
+
+
+def first_mesh(placed: StringInWell, T_bit: float, N_max: int = 4000) -> int:
+    """Two subintervals per length over which the lightest pipe lifts off its wall, ``(EI c / w)^(1/4)``, and
+    per sag length ``(EI / w)^(1/3)`` (:func:`rodcont.drivers.solve.first_mesh` with the string's clearance)."""
+    from .drivers.solve import first_mesh as rod_mesh
+    kind = Wall if isinstance(placed.clearance, float) else SteppedWall
+    return rod_mesh(placed.rod, T_bit, placed.curve, kind(placed.clearance), N_max)
+
+
+def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Operation | str = "static", *,
+                    mu=None, wob: float = 0.0, bit_torque: float = 0.0, trip_speed: float | None = None,
+                    rpm: float | None = None, bit: str = "on-axis", N: int | None = None, k: int = 5,
+                    max_error: float = 1e-6, max_side_force_error: float = 1e-3, N_max: int = 4000,
+                    tol: float = 1e-10) -> TorqueDrag:
+    """The stiff string's equilibrium with the bit at MD ``depth`` for ``operation`` (a name of
+    :data:`rodcont.loads.OPERATIONS` or an :class:`rodcont.loads.Operation`; ``trip_speed``/``rpm`` combine the
+    motion), friction factor ``mu`` (default the well's: number or MD stations), ``wob`` (N, a compression at
+    the bit; only on bottom, ``drill``) and ``bit_torque`` (N m). The mesh adapts until the estimated error
+    is below ``max_error`` and the side force's below ``max_side_force_error``."""
+    from .ends import bit_force
+    from .loads import Friction
+    op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
+    if op.name != "drill" and (wob or bit_torque):
+        raise DrillingError(f"weight and torque on bit are for drilling (the bit on bottom), not {op.name}")
+    placed = place_string(well, string, depth)
+    mu = well.friction if mu is None else mu
+    friction = Friction(mu, placed.radius, op)
+    T = bit_force(wob)
+    N = first_mesh(placed, T, N_max) if N is None else int(N)
+    with np.errstate(all="ignore"):
+        sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k)
+        x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+        sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
+    return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+
+
+def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
+    from .ends import axial_force_and_torque
+    model, disc = sysm.model, sysm.disc
+    p = disc.full_params(x, sysm.base)
+    con = model.contact(disc, x, p)
+    F, M = axial_force_and_torque(model, disc, x, p, con["S"])
+    # on the wall where the gap is below 1 % of the clearance (the law's standoff is eps c P / p; a free span's
+    # gap is of the order of c): a pressure level would miss a light pipe's contact under a large force scale
+    profile = dict(S=con["S"], axial_force=F, torque=M, pressure=con["pressure"], gap=con["gap"],
+                   in_contact=con["gap"] <= 0.01 * model.wall.clearance_at(con["S"]))
+    return TorqueDrag(float(placed.curve.length), op, mu, float(wob), float(bit_torque), float(F[0]), float(M[0]),
+                      profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed)
+
+
+# --------------------------------------------------------------------------
+# The soft-string estimate (Johancsik) on the same well path
+# --------------------------------------------------------------------------
+def soft_string(well: Well, string: DrillString, depth: float, operation: Operation | str = "static", *, mu=None,
+                wob: float = 0.0, bit_torque: float = 0.0, step: float = 1.0) -> tuple:
+    """``(hook_load, surface_torque)`` of the soft string (a cable on the wall of the well path): from the bit
+    up, classical Runge-Kutta in steps of at most ``step`` between the survey stations, section boundaries
+    and friction stations, with ``t = K3`` and ``kappa n = K3'`` of the minimum-curvature path (``g = -e3``)::
+
+        dF/dS = -w (g . t) - s_a mu |N|,   dM/dS = -s_r mu |N| r,   N = F kappa n + w (g - (g . t) t).
+
+    (The broomstick's estimate beside the stiff string; the tests check the stiff string against the
+    independent implementation in ``tests/softstring_reference.py``. Where ``N`` passes through zero on an arc in a
+    vertical plane, ``|N|`` has a kink these steps do not split: first order there, 5e-5 of the hook load and 1e-4
+    of the torque at the default step on the benchmark well.)"""
+    op = Operation.named(operation) if isinstance(operation, str) else operation
+    placed = place_string(well, string, depth)
+    curve, L = placed.curve, placed.curve.length
+    mu = well.friction if mu is None else mu
+    cuts = {0.0, L} | {float(b) for b in curve.breakpoints if 0 < b < L} | {a for a, _ in placed.radius if 0 < a < L}
+    if not isinstance(mu, (int, float)):
+        cuts |= {float(a) for a, _ in mu if 0 < a < L}
+    edges = np.array(sorted(cuts))
+    g = np.array([0.0, 0.0, -1.0])
+    y = np.array([-float(wob), float(bit_torque)])
+
+    def rhs(S, y, w, r, m):
+        j = curve.jet(np.array([S]))
+        t, kn = j.K[2][:, 0], j.k[0, 0, 0] * j.K[0][:, 0] + j.k[1, 0, 0] * j.K[1][:, 0]
+        gt = float(g @ t)
+        N = float(np.linalg.norm(y[0] * kn + w * (g - gt * t)))
+        s_a, s_r = op.split(r)
+        return np.array([-w * gt - s_a * m * N, -s_r * m * N * r])
+    for a, b in zip(edges[::-1][1:], edges[::-1][:-1]):
+        mid = 0.5 * (a + b)
+        w, r = float(_value_at(placed.weights, mid)), float(_value_at(placed.radius, mid))
+        m = float(_value_at(mu if not isinstance(mu, (int, float)) else float(mu), mid))
+        n = max(1, math.ceil((b - a) / step))
+        h = (b - a) / n
+        for i in range(n):  # upward: S decreases by h
+            S = b - i * h
+            k1 = rhs(S, y, w, r, m)
+            k2 = rhs(S - h / 2, y - h / 2 * k1, w, r, m)
+            k3 = rhs(S - h / 2, y - h / 2 * k2, w, r, m)
+            k4 = rhs(S - h, y - h * k3, w, r, m)
+            y = y - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return float(y[0]), float(y[1])
