@@ -549,6 +549,7 @@ def _trace_seeds_parallel(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer,
     kept or skipped in the serial order, by the same tests, and written to the file when it is kept."""
     import warnings
     from concurrent.futures import ProcessPoolExecutor
+
     from .sweep import _worker_init
     origins = ["primary branch from the planar sag at phi_L = 0"]
     for phi in seeds:
