@@ -1,29 +1,25 @@
-"""rodcont benchmark: prints each target, the measured figure, and whether it is met (not a test).
+"""rodcont benchmark for issue 24: each figure, its target, met or NOT met (a benchmark, not a test).
 
-    python benchmarks/bench.py            # all sections
-    python benchmarks/bench.py --quick    # fewer repeats, no dask or long-rod tail
+    python benchmarks/bench.py                 # every section
+    python benchmarks/bench.py --quick         # fewer repetitions, no N = 5000 step
+    python benchmarks/bench.py --only trace floor
 
-Machines are shared and noisy: every figure is the best of a few runs, CPU
-time of the measured process where a whole process is timed. Sections:
+CPU time (process_time of the measured call, or user + system of a whole child process), best of N, with
+the code of the issue (commit 0ee0293, ``--old``: a checkout of it, default /work/old, else ``git archive``
+of it into a temporary directory) run in the same session, old and new repetitions alternating. Both are
+byte-compiled first (``PYTHONPYCACHEPREFIX``, as an installed package is; with PYTHONDONTWRITEBYTECODE set
+every start recompiled them). The load average is printed beside the figures.
 
-1. Process floor: ``python -c "import numpy, scipy.sparse.linalg"`` against
-   ``rodcont --version`` (target 1.15x) and ``rodcont trace --gamma 1 --out F.h5``
-   (target 1.5x).
-2. Per branch in one process: ``rodcont.trace(1.0, stretch_max=0.5)`` with the
-   default settings against the code before this work (commit 85b9e70, checked
-   out into a temporary directory and run in a subprocess): target a third of
-   its time. Time per continuation step at N = 15, k = 5 (target 2 ms).
-3. Accuracy per unknown: the cheapest fixed uniform mesh (k = 5) that gives the
-   Gamma = 1 and Gamma = 2 first folds to 1e-9 in Phi (against the independent
-   Lagrangian reference, tests/data/lagrangian_folds.json), and its time.
-4. Long rods: one Newton iteration and one continuation step at N = 15, 150,
-   1500, 5000 (linear in N), peak memory.
-5. The whole Gamma = 1 diagram up to Phi = 40, whole process (target 10 s),
-   per-branch times.
-7. A 1 km drill pipe in a survey-defined well with 2000 subintervals: one
-   equilibrium, whole process (target 10 s).
-6. Many branches: a 6-Gamma sweep on a dask LocalCluster of 1 and 2 worker
-   processes (speed-up).
+Sections:
+  trace    first rodcont.trace(gamma) of a process, Gamma = 1 and 2, to the validity guard, defaults:
+           ratio to 0ee0293 (target 0.5), the folds of both
+  floor    whole process `rodcont trace --gamma 1 --out F.h5` against `import numpy, scipy.sparse.linalg`
+           (target 2.5x)
+  diagram  whole process `rodcont diagram --gamma 1 --out F.h5`: wall time (target 5 s), CPU printed
+  long     a continuation step at N = 5000 (target 250 ms); one equilibrium of the 1 km well, N = 2000
+           (examples/conduit_well.toml, target 4 s CPU), its peak memory
+  fill     fill of every factorisation at the Gamma = 1 fold (steps, error estimate, stability count): nonzeros
+           of L + U over the matrix's own (target 5)
 """
 
 from __future__ import annotations
@@ -41,268 +37,212 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 SRC = os.path.join(ROOT, "src")
-sys.path.insert(0, SRC)
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+OLD_COMMIT = "0ee0293"
+TMP = tempfile.mkdtemp(prefix="rodcont-bench-")
 
-import numpy as np  # noqa: E402
 
-import rodcont  # noqa: E402
-
-BEFORE = "85b9e70"  # the code as it stood when the speed issue was filed
-ENV = dict(os.environ, PYTHONPATH=SRC, OPENBLAS_NUM_THREADS="1")
+def env_for(src: str, tag: str) -> dict:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env.update(PYTHONPATH=src, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+               PYTHONPYCACHEPREFIX=os.path.join(TMP, f"pyc-{tag}"))
+    return env
 
 
 def verdict(ok: bool) -> str:
     return "met" if ok else "NOT met"
 
 
-def child_cpu(cmd, env=ENV, repeats=3, cwd=None) -> float:
-    """Best user+system CPU seconds of a whole child process."""
-    best = np.inf
-    for _ in range(repeats):
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        if r.returncode != 0:
-            raise RuntimeError(f"{cmd}: {r.stderr}")
-        best = min(best, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime))
-    return best
+def load() -> str:
+    return "load average %.2f %.2f %.2f" % os.getloadavg()
 
 
-def cpu(fn, repeats=3):
-    best, out = np.inf, None
-    for _ in range(repeats):
-        t = time.process_time()
-        out = fn()
-        best = min(best, time.process_time() - t)
-    return best, out
+def old_source(path: str | None) -> str | None:
+    if path and os.path.isdir(os.path.join(path, "src", "rodcont")):
+        return os.path.join(path, "src")
+    d = os.path.join(TMP, "old")
+    os.makedirs(d, exist_ok=True)
+    r = subprocess.run(f"git -C {ROOT} archive {OLD_COMMIT} src | tar -x -C {d}", shell=True, capture_output=True)
+    return os.path.join(d, "src") if r.returncode == 0 else None
 
 
-def section_floor(quick):
-    print("\n## 1. Process floor (CPU seconds of the whole process, best of 3)")
-    floor = child_cpu([sys.executable, "-c", "import numpy, scipy.sparse.linalg"])
-    rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
-    # rodcont's modules byte-compiled, as numpy's and scipy's are (pip compiles on install; an editable
-    # install writes them on first import unless PYTHONDONTWRITEBYTECODE is set, as on the machine this
-    # was written on, where every start recompiled them: about 0.08 s)
-    compiled = subprocess.run([sys.executable, "-m", "compileall", "-q", os.path.join(SRC, "rodcont")],
-                              env={k: v for k, v in ENV.items() if k != "PYTHONDONTWRITEBYTECODE"},
-                              capture_output=True).returncode == 0
-    version = child_cpu(rc + ["--version"])
-    with tempfile.TemporaryDirectory() as d:
-        tr = child_cpu(rc + ["trace", "--gamma", "1", "--out", os.path.join(d, "F.h5"), "--overwrite", "--quiet"])
-    print(f"(rodcont byte-compiled first: {'yes' if compiled else 'NO, compileall failed'})")
-    print(f"floor  python -c 'import numpy, scipy.sparse.linalg'   {floor:.3f} s")
-    print(f"rodcont --version                                     {version:.3f} s  ratio {version / floor:.2f}  "
-          f"target 1.15  {verdict(version / floor <= 1.15)}")
-    print(f"rodcont trace --gamma 1 --out F.h5 (defaults)         {tr:.3f} s  ratio {tr / floor:.2f}  "
-          f"target 1.5  {verdict(tr / floor <= 1.5)}")
+def child(cmd, env, cwd=None) -> tuple[float, float, str]:
+    """(CPU seconds, wall seconds, stdout) of one whole child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t = time.perf_counter()
+    r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)}: {r.stderr.strip()[-600:]}")
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall, r.stdout
 
 
-OLD_SNIPPET = """
-import sys, time
-sys.path.insert(0, sys.argv[1])
-from rodcont.branch import trace
-trace(1.0, stretch_max=0.5)
-best = 1e9
-for _ in range(3):
-    t = time.process_time(); br = trace(1.0, stretch_max=0.5); best = min(best, time.process_time() - t)
-print(best, br.steps, br.folds[0]['phi_L'])
-"""
-
-
-def section_branch(quick):
-    print("\n## 2. Per branch in one process: rodcont.trace(1.0, stretch_max=0.5), default settings (CPU, best of 3)")
-    rodcont.trace(1.0, stretch_max=0.5)
-    t_new, br = cpu(lambda: rodcont.trace(1.0, stretch_max=0.5))
-    f = br.folds[0]
-    print(f"now:    {t_new:.3f} s, {br.steps} steps, {br.remeshes} remeshes, fold Phi {f['phi_L']:.12f} "
-          f"(estimated error {f['error']:.1e})")
-    with tempfile.TemporaryDirectory() as d:
-        r = subprocess.run(f"git -C {ROOT} archive {BEFORE} src | tar -x -C {d}", shell=True, capture_output=True)
-        if r.returncode == 0:
-            out = subprocess.run([sys.executable, "-c", OLD_SNIPPET, os.path.join(d, "src")], env=dict(
-                os.environ, OPENBLAS_NUM_THREADS="1"), capture_output=True, text=True)
-            t_old, steps_old, phi_old = out.stdout.split()
-            t_old = float(t_old)
-            print(f"before ({BEFORE}): {t_old:.3f} s, {steps_old} steps, fold Phi {float(phi_old):.12f}")
-            print(f"ratio now / before {t_new / t_old:.2f}   target 0.33  {verdict(t_new / t_old <= 1 / 3)}")
-        else:
-            print(f"(the code before, {BEFORE}, is not in this checkout: no comparison)")
-    # time per continuation step on a fixed mesh (no error estimates, no remeshing): the steps only
-    stamps = []
-    rodcont.trace(1.0, N=15, adapt=False, max_steps=5)
-    best = np.inf
-    for _ in range(3):
-        stamps.clear()
-        t0 = time.process_time()
-        b = rodcont.trace(1.0, N=15, adapt=False, phi_max=12.0, max_error=1.0,
-                          callback=lambda pt: stamps.append((time.process_time(), str(pt.kind))))
-        reg = [t for t, kind in stamps if kind == "regular"]
-        best = min(best, (reg[-1] - reg[0]) / (len(reg) - 1))
-    print(f"one continuation step, N = 15, k = 5 (corrector, tangent, outputs): {1e3 * best:.2f} ms   target 2 ms  "
-          f"{verdict(best <= 2e-3)}   ({b.newton_iterations / b.steps:.1f} corrector iterations per step, chord and "
-          f"Newton)")
-
-
-def section_accuracy(quick):
-    print("\n## 3. Accuracy per unknown: the cheapest fixed mesh (k = 5) giving the first fold to 1e-9 in Phi")
-    with open(os.path.join(ROOT, "tests", "data", "lagrangian_folds.json")) as fh:
-        ref = {r["gamma"]: r for r in json.load(fh)["primary_folds"]}
-    for gamma in (1.0, 2.0):
-        r = ref[gamma]
-        for N in range(4, 60):
-            try:
-                b = rodcont.trace(gamma, N=N, adapt=False, max_error=1.0, stretch_max=r["stretch"] + 0.05)
-            except ValueError:
-                continue
-            if not b.folds:
-                continue
-            err = abs(b.folds[0]["phi_L"] - r["phi_L"])
-            if err < 1e-9:
-                t, _ = cpu(lambda: rodcont.trace(gamma, N=N, adapt=False, max_error=1.0,
-                                                 stretch_max=r["stretch"] + 0.05))
-                print(f"Gamma = {gamma:g}: N = {N} ({6 * N * 5 + 11} unknowns): fold Phi error {err:.1e}, "
-                      f"{t:.3f} s for the branch to just past the fold")
-                break
-        t, b = cpu(lambda: rodcont.trace(gamma, stretch_max=r["stretch"] + 0.05))
-        print(f"Gamma = {gamma:g}, the default adaptive mesh: fold Phi error {abs(b.folds[0]['phi_L'] - r['phi_L']):.1e}, "
-              f"{t:.3f} s")
-
-
-def section_long(quick):
-    print("\n## 4. Long rods: one Newton iteration and one continuation step against N (k = 5)")
-    from rodcont.linalg import LU, bordered
-    from rodcont.system import RodSystem
-    print(f"{'N':>6} {'unknowns':>9} {'Newton it [ms]':>15} {'per unknown [us]':>17} {'step [ms]':>10} "
-          f"{'peak memory [MB]':>17}")
-    rod = rodcont.RodParameters()
-    for N in ((15, 150, 1500) if quick else (15, 150, 1500, 5000)):
-        s = RodSystem(rod, 1.0, N=N)
-        x = s.model.initial_guess(s.disc, s.base[1])
-        x = s.disc.newton(x, s.params(0.0)).x
-        reps = 20 if N <= 150 else 3
-
-        def newton_iteration():
-            F, J, Fp = s.linearise(x, 0.0)
-            A = bordered(J, Fp, np.full(J.shape[0], 1.0 / J.shape[0]), 0.5)
-            return LU(A).solve(np.append(F, 0.0))
-
-        newton_iteration()
-        t0 = time.process_time()
-        for _ in range(reps):
-            newton_iteration()
-        t_it = (time.process_time() - t0) / reps
-        stamps = []
-        # regular steps only: a point where the trace ends (a bound) carries an error estimate and a
-        # stability count, which at N = 1500 cost more than the steps
-        b = rodcont.trace(1.0, N=N, adapt=False, max_error=1.0, max_steps=6 if N >= 1500 else 12, phi_max=12.0,
-                          callback=lambda pt: stamps.append((time.process_time(), str(pt.kind))))
-        reg = [t for t, kind in stamps if kind == "regular"]
-        per = (reg[-1] - reg[0]) / max(len(reg) - 1, 1)
-        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        print(f"{N:6d} {s.disc.size:9d} {1e3 * t_it:15.2f} {1e6 * t_it / s.disc.size:17.2f} {1e3 * per:10.1f} "
-              f"{peak:17.0f}")
-    if not quick:
-        print("memory of a long trace (a helix in a pipe, N = 60 adapted to 159, 154 points; whole process, "
-              "best of 2), with the heap trimmed every 0.25 s above 256 MB (the default) and never:")
-        for interval in ("0.25", "None"):
-            runs = [subprocess.run([sys.executable, "-c", MEMORY_SNIPPET, interval], env=ENV, capture_output=True,
-                                   text=True).stdout.split() for _ in range(2)]
-            peak, cpu_s, sys_s = min((float(a), float(b), float(c)) for a, b, c in runs)
-            print(f"  TRIM_INTERVAL = {interval:5s}: peak {peak:5.0f} MB, {cpu_s:.2f} s CPU of which {sys_s:.2f} s "
-                  f"system")
-
-
-MEMORY_SNIPPET = """
-import resource, sys, time
-import rodcont, rodcont.drivers.trace as T
-from rodcont.rod import RodParameters
-from rodcont.contact import Wall
-T.TRIM_INTERVAL = eval(sys.argv[1])
+FIRST_TRACE = """
+import json, sys, time
+import numpy, scipy.sparse.linalg
+import rodcont
 t = time.process_time()
-rodcont.trace(rod=RodParameters(w=0.5), T=-20.0, wall=Wall(0.01, eps=1e-2, force_scale=50.0), phi_max=60.0, N=60)
-# VmHWM, this process's own peak (ru_maxrss carries the parent's peak across fork and exec)
-hwm = [float(l.split()[1]) / 1024 for l in open("/proc/self/status") if l.startswith("VmHWM")][0]
-print(hwm, time.process_time() - t, resource.getrusage(resource.RUSAGE_SELF).ru_stime)
+br = rodcont.trace(float(sys.argv[1]))
+t = time.process_time() - t
+print(json.dumps(dict(cpu=t, steps=int(br.steps), folds=[float(f["phi_L"]) for f in br.folds])))
 """
 
 
-def section_diagram(quick):
-    print("\n## 5. rodcont diagram --gamma 1 --phi-max 40, whole process (CPU), per-branch times")
+def section_trace(a, old):
+    print(f"\n## first rodcont.trace(gamma) of a process, to the validity guard, defaults (CPU s, best of {a.reps}, "
+          f"old and new alternating)   {load()}")
+    if old is None:
+        print("(the code at 0ee0293 is not available: no ratio)")
+    for gamma in (1.0, 2.0):
+        runs = {"new": [], "old": []}
+        for _ in range(a.reps + 1):  # the first pair writes the byte-code caches
+            for tag, src in (("new", SRC), ("old", old)):
+                if src is not None:
+                    out = child([sys.executable, "-c", FIRST_TRACE, str(gamma)], env_for(src, tag))[2]
+                    runs[tag].append(json.loads(out.splitlines()[-1]))
+        new = min(runs["new"][1:], key=lambda r: r["cpu"])
+        line = f"Gamma = {gamma:g}: now {new['cpu']:.3f} s ({new['steps']} steps)"
+        if runs["old"]:
+            o = min(runs["old"][1:], key=lambda r: r["cpu"])
+            ratio = new["cpu"] / o["cpu"]
+            moved = max((abs(p - q) for p, q in zip(new["folds"], o["folds"])), default=0.0)
+            line += (f", 0ee0293 {o['cpu']:.3f} s ({o['steps']} steps): ratio {ratio:.2f}  target 0.50  "
+                     f"{verdict(ratio <= 0.5)};  folds {', '.join(f'{p:.12f}' for p in new['folds'])} "
+                     f"(largest change {moved:.1e}, same count {len(new['folds']) == len(o['folds'])})")
+        print(line)
+
+
+def section_floor(a, old):
+    print(f"\n## whole process: `rodcont trace --gamma 1 --out F.h5` against the import floor (CPU s, best of {a.reps})"
+          f"   {load()}")
+    py = [sys.executable, "-c"]
+    rc = py + ["from rodcont._entry import main; main()"]
+    out = os.path.join(TMP, "F.h5")
+    best = {}
+    for tag, src in (("new", SRC), ("old", old)):
+        if src is None:
+            continue
+        env = env_for(src, tag)
+        child(rc + ["--version"], env)  # the byte-code caches
+        best[tag] = [float("inf"), float("inf")]
+        for _ in range(a.reps):
+            best[tag][0] = min(best[tag][0], child(py + ["import numpy, scipy.sparse.linalg"], env)[0])
+            best[tag][1] = min(best[tag][1], child(rc + ["trace", "--gamma", "1", "--out", out, "--overwrite",
+                                                         "--quiet"], env)[0])
+    floor, tr = best["new"]
+    print(f"floor python -c 'import numpy, scipy.sparse.linalg'  {floor:.3f} s")
+    print(f"rodcont trace --gamma 1 --out F.h5                  {tr:.3f} s  ratio {tr / floor:.2f}  target 2.50  "
+          f"{verdict(tr / floor <= 2.5)}")
+    if "old" in best:
+        print(f"  (0ee0293: {best['old'][1]:.3f} s, ratio {best['old'][1] / best['old'][0]:.2f} to its floor)")
+
+
+def section_diagram(a, old):
+    print(f"\n## whole process: `rodcont diagram --gamma 1 --out F.h5` (branches on a process pool)   {load()}")
     rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
-    with tempfile.TemporaryDirectory() as d:
-        t0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        r = subprocess.run(rc + ["diagram", "--gamma", "1", "--phi-max", "40", "--out", os.path.join(d, "d.h5")],
-                           env=ENV, capture_output=True, text=True)
-        t1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu_s = (t1.ru_utime - t0.ru_utime) + (t1.ru_stime - t0.ru_stime)
-    for line in r.stdout.splitlines():
-        if line.lstrip()[:2].rstrip(":").isdigit() and "points" in line:
+    out = os.path.join(TMP, "D.h5")
+    cpu, wall, text = child(rc + ["diagram", "--gamma", "1", "--out", out, "--overwrite", "--quiet"],
+                            env_for(SRC, "new"))
+    for line in text.splitlines():
+        if line.strip()[:2].rstrip(":").isdigit() and "points" in line:
             print("   " + line.strip())
-    print(f"whole process {cpu_s:.2f} s CPU   target 10 s  {verdict(cpu_s <= 10.0)}")
+    print(f"wall {wall:.2f} s  target 5 s  {verdict(wall <= 5.0)}   (CPU {cpu:.2f} s, all processes; "
+          f"{os.cpu_count()} cores)")
 
 
-def section_well(quick):
-    print("\n## 7. A 1 km drill pipe in a survey-defined well (examples/conduit_well.toml), N = 2000: one "
-          "equilibrium, whole process (CPU, peak memory)")
-    rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
+STEP = """
+import json, sys, time
+import rodcont
+N = int(sys.argv[1])
+stamps = []
+rodcont.trace(1.0, N=N, adapt=False, max_error=1.0, max_steps=6, phi_max=12.0,
+              callback=lambda pt: stamps.append((time.process_time(), str(pt.kind))))
+reg = [t for t, kind in stamps if kind == "regular"]
+hwm = [float(l.split()[1]) / 1024 for l in open("/proc/self/status") if l.startswith("VmHWM")][0]
+print(json.dumps(dict(step=(reg[-1] - reg[0]) / max(len(reg) - 1, 1), peak=hwm)))
+"""
+
+
+def section_long(a, old):
+    print(f"\n## long strings (CPU, best of {min(a.reps, 3)})   {load()}")
+    for tag, src in (("new", SRC), ("old", old)):
+        if src is None or (a.quick and tag == "old"):
+            continue
+        runs = [json.loads(child([sys.executable, "-c", STEP, "5000"], env_for(src, tag))[2].splitlines()[-1])
+                for _ in range(1 if a.quick else min(a.reps, 3))]
+        r = min(runs, key=lambda q: q["step"])
+        what = "now" if tag == "new" else "0ee0293"
+        tail = f"  target 250 ms  {verdict(r['step'] <= 0.25)}" if tag == "new" else ""
+        print(f"a continuation step at N = 5000 (150 011 unknowns), {what}: {1e3 * r['step']:.0f} ms, peak "
+              f"{r['peak']:.0f} MB{tail}")
     conduit = os.path.join(ROOT, "examples", "conduit_well.toml")
-    cmd = rc + ["solve", "--T", "1e5", "--phi", "0", "--conduit", conduit, "--L", "973.077121578337",
-                "--EI", "1.25e6", "--GJ", "9.6e5", "--EA", "7.15e8", "--w", "235", "--N", "2000"]
-    best = child_cpu(cmd, repeats=1 if quick else 3)
-    # its own peak memory: measured by a fresh parent (this process's children include the long rods above)
+    cmd = [sys.executable, "-c", "from rodcont._entry import main; main()", "solve", "--T", "1e5", "--phi", "0",
+           "--conduit", conduit, "--L", "973.077121578337", "--EI", "1.25e6", "--GJ", "9.6e5", "--EA", "7.15e8",
+           "--w", "235", "--N", "2000"]
     probe = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], capture_output=True, check=True); "
              "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
-    peak = int(subprocess.run([sys.executable, "-c", probe] + cmd, env=ENV, capture_output=True, text=True,
-                              check=True).stdout) / 1024
-    # unknowns: 6 N k + 11, and 5 at each of the well's 2 curvature jumps (joins: MD 300, 600)
-    print(f"one equilibrium {best:.2f} s CPU ({6 * 5 * 2000 + 11 + 2 * 5} unknowns), peak memory {peak:.0f} MB   "
-          f"target 10 s  {verdict(best <= 10.0)}")
+    for tag, src in (("new", SRC), ("old", old)):
+        if src is None or (a.quick and tag == "old"):
+            continue
+        best = min(child(cmd, env_for(src, tag))[0] for _ in range(1 if a.quick else 2))
+        peak = int(child([sys.executable, "-c", probe] + cmd, env_for(src, tag))[2]) / 1024
+        what = "now" if tag == "new" else "0ee0293"
+        tail = f"  target 4 s  {verdict(best <= 4.0)}" if tag == "new" else ""
+        print(f"one equilibrium of the 1 km well, N = 2000, whole process, {what}: {best:.2f} s, peak {peak:.0f} MB"
+              f"{tail}")
 
 
-def section_dask(quick):
-    print("\n## 6. A 6-Gamma sweep on a dask LocalCluster of process workers")
+FILL = """
+import collections, json, sys
+import scipy.sparse.linalg as spla
+worst, orig = collections.defaultdict(float), spla.splu
+
+
+def splu(A, *args, **kwargs):
+    lu = orig(A, *args, **kwargs)
+    f = sys._getframe(1)
+    while any(s in f.f_code.co_filename for s in ("scipy", "linalg.py")):
+        f = f.f_back
+    where = f.f_code.co_filename.rsplit("/", 1)[-1] + ":" + f.f_code.co_name
+    worst[where] = max(worst[where], (lu.L.nnz + lu.U.nnz) / A.nnz)
+    return lu
+
+
+spla.splu = splu
+import rodcont
+br = rodcont.trace(1.0, stretch_max=0.2)  # through the fold: its location, estimate and count
+print(json.dumps(worst))
+"""
+
+
+def section_fill(a, old):
+    print(f"\n## fill of the factorisations at the Gamma = 1 fold (nonzeros of L + U / the matrix's)   {load()}")
     try:
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        print("dask.distributed is not installed (pip install 'rodcont[dask]'): skipped")
+        r = json.loads(child([sys.executable, "-c", FILL], env_for(SRC, "new"))[2].splitlines()[-1])
+    except RuntimeError as exc:
+        print(f"not measured: {exc}")
         return
-    from rodcont.drivers.sweep import sweep
-    times = {}
-    for workers in (1, 2):
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as c, \
-                Client(c) as client, tempfile.TemporaryDirectory() as d:
-            t = time.perf_counter()
-            sweep([0.0, 0.5, 1.0, 2.0, 5.0, 10.0], d, executor=client.get_executor(), stretch_max=0.5, plot=False)
-            times[workers] = time.perf_counter() - t
-        print(f"{workers} worker(s): {times[workers]:.2f} s wall")
-    print(f"speed-up on 2 workers: {times[1] / times[2]:.2f} (2 cores, shared)")
-
-
-def section_bordered(quick):
-    print("\n## 8. Bordered solve: finite-difference Bratu through its fold, n = 2000 .. 20000, and the rod's fold")
-    args = [sys.executable, os.path.join(HERE, "bordered_fd.py"), "--rod"] + (["--quick"] if quick else [])
-    out = subprocess.run(args, env=ENV, capture_output=True, text=True)
-    print(out.stdout.rstrip() if out.returncode == 0 else f"bordered_fd.py failed: {out.stderr.strip()[-400:]}")
+    for name, ratio in r.items():
+        print(f"{name:28s} {ratio:5.2f}  target 5  {verdict(ratio <= 5.0)}")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", nargs="*", help="sections to run: floor branch accuracy long diagram well dask")
-    args = ap.parse_args()
-    print(f"# rodcont {rodcont.__version__} benchmark, {time.strftime('%Y-%m-%d')}, {platform.machine()}, "
-          f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, "
-          f"load average {os.getloadavg()[0]:.2f}")
-    sections = dict(floor=section_floor, branch=section_branch, accuracy=section_accuracy, long=section_long,
-                    diagram=section_diagram, well=section_well, dask=section_dask, bordered=section_bordered)
+    ap.add_argument("--reps", type=int, default=None, help="repetitions (best of; default 5, --quick 3)")
+    ap.add_argument("--old", default="/work/old", help="a checkout of 0ee0293 (else git archive of it)")
+    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill")
+    a = ap.parse_args()
+    a.reps = a.reps or (3 if a.quick else 5)
+    import numpy as np
+    print(f"# rodcont benchmark (issue 24), {time.strftime('%Y-%m-%d %H:%M')}, {platform.machine()}, "
+          f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, {load()}")
+    old = old_source(a.old)
+    sections = dict(trace=section_trace, floor=section_floor, diagram=section_diagram, long=section_long,
+                    fill=section_fill)
     for name, fn in sections.items():
-        if args.only and name not in args.only:
-            continue
-        if args.quick and name == "dask":
-            continue
-        fn(args.quick)
+        if not a.only or name in a.only:
+            fn(a, old)
 
 
 if __name__ == "__main__":

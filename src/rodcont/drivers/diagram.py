@@ -330,8 +330,14 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     line per branch as it is done. ``resumed``: the complete branches of an interrupted run of this very
     diagram, in their order (:func:`rodcont.restart.resume_diagram`): each is kept where the run reaches its
     seed again, not traced. An interrupted run marks its file and the branch it was tracing ``interrupted``.
+
+    The branches are traced at once on an executor (``executor=``, any ``concurrent.futures`` one, e.g. a Dask
+    ``client.get_executor()``; default a process pool of ``jobs`` workers, every core when None: the one
+    :mod:`rodcont.drivers.sweep` uses): the same branches, in the same order, as ``jobs=1``, which traces them
+    one after the other (as does a resumed run, and a diagram inside a worker process).
     """
     from .trace import _options
+    executor, jobs = options.pop("executor", None), options.pop("jobs", None)
     opts = _options(options, "diagram()")
     rod, T = _rod_and_tension(gamma, rod, T, l0)
     ends = None
@@ -366,7 +372,11 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         _mesh_group(writer, RodSystem(rod, T=T, N=N, k=k))
     note = progress or (lambda msg: None)
     try:
-        _trace_seeds(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note, ends)
+        if dg.resumed or not _parallel(jobs, executor, len(seeds) + 1):
+            _trace_seeds(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note, ends)
+        else:
+            _trace_seeds_parallel(dg, rod, T, N, k, seeds, beyond, bopts, writer, callback, note, ends, executor,
+                                  jobs)
         for phi in deflate_at:
             _trace_deflated(dg, rod, T, phi, N, k, opts, bopts, writer, callback, note)
         _drop_duplicates(dg, writer)
@@ -493,6 +503,112 @@ def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback
         db = _trace_both(system, xs, phi, bopts, origin, writer, dg, callback)
         db.seed_phi, db.time = phi, time.perf_counter() - t0
         _keep(dg, db, note)
+
+
+def _parallel(jobs, executor, n_jobs: int) -> bool:
+    """Whether the branches go to an executor: one was given, or more than one job and core, outside a worker
+    process (a sweep of diagrams is already parallel over Gamma)."""
+    import multiprocessing
+    import os
+    if executor is not None:
+        return True
+    if jobs is not None:
+        jobs = check_number("jobs", jobs, integer=True)
+        if jobs < 1:
+            raise ValueError(f"jobs must be >= 1, got {jobs}")
+    workers = jobs or os.cpu_count() or 1
+    return n_jobs > 1 and workers > 1 and multiprocessing.parent_process() is None
+
+
+def _branch_job(rod, T, N, k, phi, bopts, ends, gamma, attrs, origin) -> dict:
+    """One branch of a diagram traced without a file (a worker's job): what :func:`_trace_seeds` does for the
+    primary branch (``phi`` None) or for the seed at ``phi``; the branch, its seed's solution and mesh (for the
+    test against the branches kept before it), its time and the warnings it raised."""
+    import warnings
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if phi is None:
+            system = RodSystem(rod, T=T, N=N, k=k, ends=ends)
+            x0, phi0 = system.model.initial_guess(system.disc, system.base[1]), 0.0
+        else:
+            try:
+                sysw, x0 = straight_seed(rod, T, phi, N, k, ends=ends)
+            except TraceError as exc:
+                return dict(error=str(exc), warnings=[])
+            system, phi0 = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints, ends=ends), phi
+        dg = Diagram(gamma=gamma, T=T, rod=rod, critical=[], attrs=attrs)
+        db = _trace_both(system, x0, phi0, bopts, origin, None, dg, None, both=phi is not None)
+    kinds = [str(v) for v in db.branch.table["kind"]]  # the upward trace starts at the (only) start point
+    up = kinds.index(str(Kind.START)) if str(Kind.START) in kinds else 0
+    return dict(error=None, branch=db.branch, ends=db.ends, x=x0, breakpoints=system.disc.breakpoints, up=up,
+                time=time.perf_counter() - t0, warnings=[(str(w.message), w.category) for w in caught])
+
+
+def _trace_seeds_parallel(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback, note, ends, executor,
+                          jobs) -> None:
+    """:func:`_trace_seeds` with every branch traced at once on ``executor`` (default a process pool); each is
+    kept or skipped in the serial order, by the same tests, and written to the file when it is kept."""
+    import warnings
+    from concurrent.futures import ProcessPoolExecutor
+
+    from .sweep import _worker_init
+    origins = ["primary branch from the planar sag at phi_L = 0"]
+    for phi in seeds:
+        lo, hi = max(c for c in crit if c < phi), min(c for c in crit if c > phi)
+        origins.append(f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}")
+    own = executor is None
+    if own:
+        import os
+        executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(origins)),
+                                       initializer=_worker_init)
+    finished = False
+    try:
+        futures = [executor.submit(_branch_job, rod, T, N, k, phi, bopts, ends, dg.gamma, dg.attrs, origin)
+                   for phi, origin in zip([None] + list(seeds), origins)]
+        for phi, origin, future in zip([None] + list(seeds), origins, futures):
+            r = future.result()
+            for message, category in r["warnings"]:
+                warnings.warn(message, category, stacklevel=3)
+            if r["error"] is not None:
+                dg.skipped.append((origin, r["error"]))
+                note(f"  skipped {origin}: {r['error']}")
+                continue
+            if phi is not None:
+                system = RodSystem(rod, T=T, N=N, k=k, breakpoints=r["breakpoints"], ends=ends)
+                on = _on_known_branch(dg, system, r["x"], phi)
+                if on is not None:
+                    dg.skipped.append((origin, f"lies on branch {on}"))
+                    note(f"  {origin}: lies on branch {on}, not traced again")
+                    continue
+            db = DiagramBranch(r["branch"], origin, r["ends"], math.nan if phi is None else phi, r["time"])
+            _write_branch(writer, dg, db, callback, r["up"])
+            _keep(dg, db, note)
+        finished = True
+    finally:
+        if own:
+            executor.shutdown(wait=finished, cancel_futures=True)
+
+
+def _write_branch(writer, dg: Diagram, db: DiagramBranch, callback, up: int) -> None:
+    """A branch traced elsewhere, copied into the file as branch ``len(dg.branches)`` (as a resumed one is);
+    ``callback`` sees the points of its upward trace, from the ``up``-th on, as the serial run's does."""
+    b = db.branch
+    if writer is not None:
+        j = len(dg.branches)
+        group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin), extra_columns=_extra_columns(dg))
+        rec = Recorder(Branch(dg.gamma, dg.rod, b.N, b.k, attrs=b.attrs), writer, group)
+        for i in range(len(b)):
+            rec.copy(b, i)
+        _branch_attrs(writer, j, b)
+        rec.sync()
+        writer.flush()
+    if callback is not None:
+        for i in range(up, len(b)):
+            row = b.row_at(i)
+            t = np.asarray(b.tangents[i], float)
+            callback(Point(x=b.coefficients[i], p=float(row["phi_L"]), tx=t[:-1], tp=float(t[-1]) if t.size else 0.0,
+                           kind=row["kind"], located=bool(row["located"]), data=row, message=b.messages.get(i, "")))
 
 
 def _trace_deflated(dg: Diagram, rod, T, phi, N, k, opts, bopts, writer, callback, note) -> None:
