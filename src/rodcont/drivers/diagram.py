@@ -331,13 +331,14 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     diagram, in their order (:func:`rodcont.restart.resume_diagram`): each is kept where the run reaches its
     seed again, not traced. An interrupted run marks its file and the branch it was tracing ``interrupted``.
 
-    The branches are traced at once on an executor (``executor=``, any ``concurrent.futures`` one, e.g. a Dask
-    ``client.get_executor()``; default a process pool of ``jobs`` workers, every core when None: the one
+    With ``jobs > 1`` (None: every core) or an ``executor=`` (any ``concurrent.futures`` one, e.g. a Dask
+    ``client.get_executor()``) the branches are traced at once (a process pool of ``jobs`` workers: the one
     :mod:`rodcont.drivers.sweep` uses): the same branches, in the same order, as ``jobs=1``, which traces them
-    one after the other (as does a resumed run, and a diagram inside a worker process).
+    one after the other, the default (as does a resumed run, and a diagram inside a worker process: an
+    interrupt stops a serial run between points, test_an_interrupted_diagram_is_marked_and_resume_finishes_it).
     """
     from .trace import _options
-    executor, jobs = options.pop("executor", None), options.pop("jobs", None)
+    executor, jobs = options.pop("executor", None), options.pop("jobs", 1)
     opts = _options(options, "diagram()")
     rod, T = _rod_and_tension(gamma, rod, T, l0)
     ends = None
