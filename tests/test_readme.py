@@ -32,7 +32,6 @@ import sys
 import warnings
 
 import h5py
-import numpy as np
 import pytest
 
 import rodcont
@@ -271,7 +270,8 @@ def comment_numbers(body: str) -> dict[int, str]:
 @pytest.fixture(scope="module")
 def python_blocks(tmp_path_factory):
     work = tmp_path_factory.mktemp("readme_python")
-    return [(line, body, run_python(body, work), work) for line, body in code_blocks("python")]
+    return [(line, body, run_python(body, work), work) for line, body in code_blocks("python")
+            if "dask" not in body]  # the Dask example runs as its file (test_dask_example)
 
 
 def followed_by_output(line: int, body: str) -> str | None:
@@ -328,6 +328,33 @@ def test_python_api_block_uses_the_result_type(python_blocks):
     assert isinstance(data, rodcont.ContinuationResult) and isinstance(data.status, rodcont.Status)
     assert [(sp.label, sp.index) for sp in data.special][:2] == [("start", 0), ("F1", data.folds[0]["index"])]
     assert (work / "family" / "response_diagram.png").exists()
+
+
+def test_dask_example_is_the_readme_block_and_prints_it(tmp_path):
+    """examples/dask_sweep.py is the README's block, run as a user runs it (a LocalCluster of two worker
+    processes): it prints the README's lines, its folds are the Lagrangian reference's to 1e-9, and its files
+    hold them."""
+    pytest.importorskip("dask.distributed")
+    import subprocess
+
+    from rodcont.drivers.sweep import branch_path
+    (line, body), = [b for b in code_blocks("python") if "dask" in b[1]]
+    code = open(os.path.join(ROOT, "examples", "dask_sweep.py"), encoding="utf-8").read()
+    assert body + "\n" == code[code.index('"""', 3) + 3:].lstrip("\n")
+    assert "`pip install '.[dask]'` from a checkout" in README and 'if __name__ == "__main__":' in body
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(ROOT, "src"), os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "dask_sweep.py")], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    printed = r.stdout.splitlines()
+    assert_same_lines(followed_by_output(line, body).splitlines(), printed)
+    ref = {f["gamma"]: f["phi_L"] for f in LAGRANGIAN["primary_folds"]}
+    for row in printed[:-1]:
+        gamma, fold = float(row.split()[1]), float(row.split()[-1])
+        assert abs(fold - ref[gamma]) < 1e-9
+        data = rodcont.load_branch(branch_path(str(tmp_path / "dask_family"), gamma))
+        assert data.folds[0]["phi_L"] == fold
+    assert (tmp_path / printed[-1].split()[1]).exists()
 
 
 # --------------------------------------------------------------------------
