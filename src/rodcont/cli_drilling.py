@@ -108,6 +108,7 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     """Hook load against bit depth for pick-up, slack-off and rotating off bottom, one curve per friction
     factor, the soft-string estimate beside each, and the surface torque against depth."""
     import numpy as np
+
     from .drivers.broomstick import broomstick, plot_broomstick, write_broomstick
     # click's options take one value each: the further numbers of --friction 0.15 0.25 0.35 arrive as arguments
     friction = [_check("friction", f, nonnegative=True) for f in tuple(friction) + tuple(more_friction)]
@@ -131,9 +132,9 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     i = -1  # the deepest point of each curve, as name value lines
     for k, op in enumerate(br.operations):
         for j, mu in enumerate(br.mus):
-            click.echo(f"hook_load {op} {mu:g} {br.hook_load[i, k, j]!r}")
+            click.echo(f"hook_load {op} {mu:g} {float(br.hook_load[i, k, j])!r}")
     for j, mu in enumerate(br.mus):
-        click.echo(f"surface_torque rotate {mu:g} {br.surface_torque[i, br.operations.index('rotate'), j]!r}")
+        click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
     click.echo(f"plot {png}")
 
 

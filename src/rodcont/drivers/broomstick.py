@@ -92,6 +92,7 @@ def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None
     """The broomstick as HDF5 (written whole, then renamed over ``path``): ``depth``, ``friction``, ``operations``
     and one dataset per array of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes."""
     import h5py
+
     from ..safeio import commit, discard
     tmp = f"{path}.tmp{os.getpid()}"
     try:
