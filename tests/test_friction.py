@@ -158,7 +158,7 @@ def test_jacobian_with_friction_sections_and_the_rig_ends_against_differences():
     for j in range(disc.size):
         e = np.zeros(disc.size)
         e[j] = 1.0
-        Jfd[:, j] = differences(lambda t: disc.residual(x + t * e, p))
+        Jfd[:, j] = differences(lambda t, e=e: disc.residual(x + t * e, p))
     # each row against its own size (the wall's rows reach 1e5)
     rows = np.maximum(np.abs(J).max(axis=1), 1.0)[:, None]
     assert np.all(np.abs(J - Jfd) <= 1e-9 * rows)

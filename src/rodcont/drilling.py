@@ -95,7 +95,7 @@ class DrillString:
             raise DrillingError(f"the buoyancy factor must lie in (0, 1], got {self.buoyancy_factor!r}")
 
     @classmethod
-    def from_toml(cls, path: str, mud_density: float | None = None) -> "DrillString":
+    def from_toml(cls, path: str, mud_density: float | None = None) -> DrillString:
         """``[string]`` (``mud_density`` kg/m^3 or ``buoyancy_factor``; ``E, G, density`` of the steel) and one
         ``[[section]]`` per section from the bit up; ``mud_density`` given here replaces the file's."""
         doc = _read_toml(path, "string file")
@@ -129,6 +129,7 @@ class DrillString:
 
 def _read_toml(path: str, what: str) -> dict:
     import tomllib
+
     from .safeio import InputFileError, read_input
     try:
         return tomllib.loads(read_input(path, "toml", what=what).decode("utf-8"))
@@ -160,7 +161,7 @@ class Well:
     eps: float = 1e-5
 
     @classmethod
-    def from_toml(cls, path: str) -> "Well":
+    def from_toml(cls, path: str) -> Well:
         """``[well]``: ``survey`` (a CSV of MD, INC, AZI, relative to the file), ``hole_diameter``, ``friction``,
         ``eps``."""
         from .curves import MinimumCurvatureWell
@@ -352,6 +353,7 @@ def settle(sysm, x, tol: float = 1e-10):
     """The equilibrium inside the hole from a guess that may cross its wall: the contact law's smoothing from
     0.1 down to the wall's own by factors of 10, Newton at each (a factor 100 stalls on a slack string)."""
     import dataclasses
+
     from .drivers.solve import ConvergenceError
     model, wall = sysm.model, sysm.model.wall
     stages = [0.1]

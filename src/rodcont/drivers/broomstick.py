@@ -1,0 +1,148 @@
+"""The broomstick: hook load against bit depth for pick-up, slack-off and rotating off bottom, one curve per
+friction factor, the soft-string estimate beside each, and the surface torque against depth.
+
+Each ``(operation, friction factor)`` is one job (:func:`broom_job`, a plain top-level function) on any
+``concurrent.futures`` executor, the default a local process pool as :func:`rodcont.drivers.sweep.sweep` uses;
+inside a job the depths are solved one after the other (:func:`rodcont.drilling.torque_and_drag`). A depth that
+fails is stored as NaN with its reason; the others go on.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+OPERATIONS = ("pick-up", "slack-off", "rotate")
+
+
+def broom_job(well, string, depths, operation: str, mu: float, options: dict) -> dict:
+    """One curve: the stiff and the soft string at every depth for ``operation`` and ``mu``."""
+    from ..drilling import soft_string, torque_and_drag
+    n = len(depths)
+    out = {key: np.full(n, np.nan) for key in ("hook_load", "surface_torque", "soft_hook_load",
+                                               "soft_surface_torque", "side_force", "error", "N")}
+    out["failures"] = []
+    t0 = time.perf_counter()
+    for i, d in enumerate(depths):
+        try:
+            r = torque_and_drag(well, string, float(d), operation, mu=mu, **options)
+            out["hook_load"][i], out["surface_torque"][i] = r.hook_load, r.surface_torque
+            out["side_force"][i], out["error"][i], out["N"][i] = r.side_force, r.error, r.N
+        except Exception as exc:  # noqa: BLE001 - one failing depth is reported, the others go on
+            out["failures"].append((float(d), str(exc)))
+        out["soft_hook_load"][i], out["soft_surface_torque"][i] = soft_string(well, string, float(d), operation, mu=mu)
+    out["elapsed"] = time.perf_counter() - t0
+    return out
+
+
+@dataclass
+class Broomstick:
+    """Arrays ``(len(depths), len(operations), len(mus))``: ``hook_load``, ``surface_torque``, their soft-string
+    estimates ``soft_hook_load``, ``soft_surface_torque``, ``side_force``, ``error``, ``N``; ``failures``
+    ``[(operation, mu, depth, reason)]``, ``elapsed`` (s) per job."""
+
+    depths: np.ndarray
+    operations: tuple
+    mus: tuple
+    data: dict
+    failures: list = field(default_factory=list)
+    elapsed: dict = field(default_factory=dict)
+
+    def __getattr__(self, name):
+        data = self.__dict__.get("data", {})
+        if name in data:
+            return data[name]
+        raise AttributeError(name)
+
+
+def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Executor | None = None,
+               jobs: int | None = None, **options) -> Broomstick:
+    """The broomstick of ``string`` in ``well`` at ``depths`` (m, bit MD) for each friction factor of ``mus``
+    and each operation; ``options`` go to :func:`rodcont.drilling.torque_and_drag` (``N_max``, ``max_error``)."""
+    from .sweep import _worker_init
+    depths = np.asarray(depths, float)
+    cases = [(op, float(mu)) for op in operations for mu in mus]
+    own = executor is None
+    if own:
+        jobs = jobs or os.cpu_count() or 1
+        executor = ProcessPoolExecutor(max_workers=min(jobs, len(cases)), initializer=_worker_init)
+    try:
+        futures = {executor.submit(broom_job, well, string, depths, op, mu, options): (op, mu) for op, mu in cases}
+        done = {futures[f]: f.result() for f in futures}
+    finally:
+        if own:
+            executor.shutdown(wait=True, cancel_futures=True)
+    shape = (depths.size, len(operations), len(mus))
+    data = {key: np.empty(shape) for key in next(iter(done.values())) if key not in ("failures", "elapsed")}
+    failures, elapsed = [], {}
+    for (op, mu), res in done.items():
+        i, j = list(operations).index(op), list(mus).index(mu)
+        for key in data:
+            data[key][:, i, j] = res[key]
+        failures += [(op, mu, d, why) for d, why in res["failures"]]
+        elapsed[(op, mu)] = res["elapsed"]
+    return Broomstick(depths, tuple(operations), tuple(float(m) for m in mus), data, failures, elapsed)
+
+
+def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None:
+    """The broomstick as HDF5 (written whole, then renamed over ``path``): ``depth``, ``friction``, ``operations``
+    and one dataset per array of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes."""
+    import h5py
+
+    from ..safeio import commit, discard
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["kind"] = "broomstick"
+            for key, v in (meta or {}).items():
+                f.attrs[key] = v
+            f["depth"] = b.depths
+            f["friction"] = np.asarray(b.mus)
+            f["operations"] = np.array(b.operations, dtype=h5py.string_dtype())
+            for key, v in b.data.items():
+                f[key] = v
+        commit(tmp, path)
+    except BaseException:
+        discard(tmp)
+        raise
+
+
+def plot_broomstick(b: Broomstick, path: str) -> None:
+    """Hook load (kN) against bit depth, one line per operation and friction factor, the soft string dashed;
+    the rotating surface torque (kN m) against depth beside it."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (ax, axt) = plt.subplots(1, 2, figsize=(11, 6), sharey=True)
+    colours = {"pick-up": "tab:red", "slack-off": "tab:blue", "rotate": "tab:green"}
+    for i, op in enumerate(b.operations):
+        for j, mu in enumerate(b.mus):
+            alpha = 0.4 + 0.6 * (j + 1) / len(b.mus)
+            c = colours.get(op, "k")
+            ax.plot(b.hook_load[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, label=f"{op}, mu {mu:g}")
+            ax.plot(b.soft_hook_load[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, ls="--")
+            if op == "rotate":
+                axt.plot(b.surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, label=f"mu {mu:g}")
+                axt.plot(b.soft_surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, ls="--")
+    ax.set_xlabel("hook load (kN)")
+    ax.set_ylabel("bit measured depth (m)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=7, title="stiff string; soft string dashed")
+    axt.set_xlabel("surface torque, rotating off bottom (kN m)")
+    if axt.lines:
+        axt.legend(fontsize=7)
+    fig.tight_layout()
+    from ..safeio import commit, discard
+    tmp = f"{path}.tmp{os.getpid()}.png"
+    try:
+        fig.savefig(tmp, dpi=120)
+        commit(tmp, path)
+    except BaseException:
+        discard(tmp)
+        raise
+    finally:
+        plt.close(fig)
