@@ -352,25 +352,8 @@ def build_system(placed: StringInWell, friction, T_bit: float, bit_torque: float
 def settle(sysm, x, tol: float = 1e-10):
     """The equilibrium inside the hole from a guess that may cross its wall: the contact law's smoothing from
     0.1 down to the wall's own by factors of 10, Newton at each (a factor 100 stalls on a slack string)."""
-    import dataclasses
-
-    from .drivers.solve import ConvergenceError
-    model, wall = sysm.model, sysm.model.wall
-    stages = [0.1]
-    while stages[-1] / 10 > wall.eps * (1 + 1e-9):
-        stages.append(stages[-1] / 10)
-    stages.append(wall.eps)
-    try:
-        for eps in stages:
-            model.wall = dataclasses.replace(wall, eps=eps)
-            r = sysm.disc.newton(x, sysm.base, tol=tol, max_iter=60)
-            if not r.converged:
-                raise ConvergenceError(f"no equilibrium of the string in the hole (contact smoothing eps = {eps:g}): "
-                                       f"{r.message}")
-            x = r.x
-    finally:
-        model.wall = wall
-    return x
+    from .drivers.solve import settle_in_conduit
+    return settle_in_conduit(sysm, x, sysm.base, tol, factor=10.0)
 
 
 def _estimate(sysm, x) -> tuple:

@@ -106,19 +106,20 @@ class Equilibrium:
         return self.system.model.centreline(self.system.disc, self.x, S)
 
 
-def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float = 1e-10) -> np.ndarray:
+def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float = 1e-10,
+                      factor: float = 100.0) -> np.ndarray:
     """An equilibrium inside the conduit from a guess that may cross its wall: homotopy in the smoothing.
 
     The contact law ``p (g + p/k) = mu`` (:mod:`rodcont.contact`) is solved
-    first with a soft wall (``eps = 0.1``), then with ``eps`` divided by 100 at
-    each stage down to the wall's own, each stage from the previous solution
-    (a stiff wall seen from a far-off guess stalls Newton's line search).
+    first with a soft wall (``eps = 0.1``), then with ``eps`` divided by ``factor`` at
+    each stage down to the wall's own (a slack drill string needs 10: rodcont.drilling.settle),
+    each stage from the previous solution (a stiff wall seen from a far-off guess stalls Newton's line search).
     Returns the last stage's solution (the caller confirms it with Newton).
     """
     model, wall = sysm.model, sysm.model.wall
     stages = [0.1]
-    while stages[-1] / 100 > wall.eps:
-        stages.append(stages[-1] / 100)
+    while stages[-1] / factor > wall.eps:
+        stages.append(stages[-1] / factor)
     stages.append(wall.eps)
     try:
         for eps in stages:
