@@ -15,7 +15,7 @@ from conftest import run
 
 from rodcont.branchfile import BranchWriter, FOLD_FIELDS, SCALARS, load_branch, load_diagram
 from rodcont.cli import main_group
-from rodcont.cli_export import animate_cmd, export_cmd
+from rodcont.cli.export import animate_cmd, export_cmd
 from rodcont.export import ExportError, rod_fields, write_npz
 from rodcont.system import point_system
 

@@ -1,9 +1,7 @@
 """``rodcont export`` and ``rodcont animate``: stored equilibria as CSV, VTK, NumPy files and animations.
 
-Register with ``main_group.add_command(export_cmd)`` and
-``main_group.add_command(animate_cmd)``. Errors a user can cause end, through
-:class:`rodcont.cli.UserError`, in one line and exit status 2. Only click is
-imported here; numpy, h5py and matplotlib are imported when a command runs.
+Errors a user can cause end, through :class:`rodcont.cli.common.UserError`, in one line and exit
+status 2. Only click is imported here; numpy, h5py and matplotlib are imported when a command runs.
 """
 
 from __future__ import annotations
@@ -12,14 +10,11 @@ import os
 
 import click
 
+from .common import UserError, image_out, input_files, load_any_file
+
 MAX_SAMPLES = 1_000_000           # rodcont.export.MAX_SAMPLES (not imported: it loads numpy)
 MAX_SERIES_VALUES = 20_000_000    # samples x points for --all
 SUFFIXES = {".csv": "csv", ".vtp": "vtk", ".pvd": "vtk", ".npz": "npz"}
-
-
-def _user_error(msg):
-    from .cli import UserError
-    return UserError(msg)
 
 
 def _branch_spec(spec: str):
@@ -38,15 +33,15 @@ def _branch_spec(spec: str):
             if os.path.exists(head):
                 path, tail = head, [last]
     if any(not t.strip() for t in tail):
-        raise _user_error(f"expected FILE.h5, FILE.h5:BRANCH or FILE.h5:BRANCH:POINT, got {spec!r}")
-    from .cli import _load_any  # a file without rodcont's checksum is read, and said so
-    diagram = _load_any(path)
+        raise UserError(f"expected FILE.h5, FILE.h5:BRANCH or FILE.h5:BRANCH:POINT, got {spec!r}")
+    # a file without rodcont's checksum is read, and said so
+    diagram = load_any_file(path)
     is_diagram = diagram.attrs.get("kind") == "diagram" or any(b.name for b in diagram.branches)
     branch = point = None
     if len(tail) == 2:
         branch, point = tail
         if not is_diagram:
-            raise _user_error(f"{path} is a single branch, not a diagram: no branch {branch} "
+            raise UserError(f"{path} is a single branch, not a diagram: no branch {branch} "
                               f"(give {path}:POINT or --point)")
     elif len(tail) == 1:
         if is_diagram:
@@ -58,30 +53,30 @@ def _branch_spec(spec: str):
 
 def _pick_branch(path, diagram, branch, branch_opt):
     if branch is not None and branch_opt is not None and str(branch) != str(branch_opt):
-        raise _user_error(f"two branches named: {path}:{branch} and --branch {branch_opt}")
+        raise UserError(f"two branches named: {path}:{branch} and --branch {branch_opt}")
     branch = branch if branch is not None else branch_opt
     names = [b.name for b in diagram.branches]
     is_diagram = diagram.attrs.get("kind") == "diagram" or any(names)
     if not is_diagram:
         if branch is not None:
-            raise _user_error(f"{path} is a single branch, not a diagram: no branch {branch}")
+            raise UserError(f"{path} is a single branch, not a diagram: no branch {branch}")
         data = diagram.branches[0]
     else:
         if branch is None:
             if len(names) != 1:
-                raise _user_error(f"{path} is a diagram of {len(names)} branches: name one as {path}:<j> "
+                raise UserError(f"{path} is a diagram of {len(names)} branches: name one as {path}:<j> "
                                   f"or --branch <j> (j in {', '.join(names)})")
             branch = names[0]
         if str(branch).strip() not in names:
-            raise _user_error(f"{path} has no branch {branch} (branches: {', '.join(names)})")
+            raise UserError(f"{path} has no branch {branch} (branches: {', '.join(names)})")
         data = diagram.branches[names.index(str(branch).strip())]
     if len(data) == 0:
-        raise _user_error(f"{data.label} holds no point")
+        raise UserError(f"{data.label} holds no point")
     return data
 
 
 def _is_branch_file(path: str) -> bool:
-    from .branchfile import MAGIC
+    from ..branchfile import MAGIC
     try:
         with open(path, "rb") as fh:
             head = fh.read(len(MAGIC))
@@ -97,23 +92,21 @@ def _check_output(path: str, diagram, overwrite: bool = False, what: str = "-o",
     """The output path: a name, none of the command's inputs (the branch file, the surveys it names: any name
     of them), in a directory that exists and is writable, not a branch file, an existing file only with
     ``--overwrite`` (a series' files are checked when it is written)."""
-    from .cli import _image_out
     if os.path.isfile(path) and _is_branch_file(path) and not any(
             os.path.samefile(path, p) for p in [diagram.path] if os.path.exists(p)):
-        raise _user_error(f"{path} is an HDF5 (branch) file: export will not overwrite it, choose another name")
-    return _image_out(path, [diagram.path], overwrite or series, loaded=(diagram,))
+        raise UserError(f"{path} is an HDF5 (branch) file: export will not overwrite it, choose another name")
+    return image_out(path, [diagram.path], overwrite or series, loaded=(diagram,))
 
 
 def _series_not_inputs(output: str, n: int, diagram) -> None:
     """No file of a ``.pvd`` series is one of the command's inputs (under any name)."""
-    from .branchfile import same_file
-    from .cli import _inputs
-    from .export import series_files
-    inputs = _inputs(loaded=(diagram,))
+    from ..branchfile import same_file
+    from ..export import series_files
+    inputs = input_files(loaded=(diagram,))
     for target in series_files(output, n):
         for src in inputs:
             if same_file(target, src):
-                raise _user_error(f"-o {output}: its series file {target} is the input file {src}: write to "
+                raise UserError(f"-o {output}: its series file {target} is the input file {src}: write to "
                                   f"another name")
 
 
@@ -122,22 +115,22 @@ def _format(output: str, fmt: str | None, all_points: bool) -> str:
     implied = SUFFIXES.get(ext)
     if fmt is None:
         if implied is None:
-            raise _user_error(f"cannot tell the format of -o {output}: give --format csv|vtk|npz "
+            raise UserError(f"cannot tell the format of -o {output}: give --format csv|vtk|npz "
                               f"or name it .csv, .vtp (.pvd with --all) or .npz")
         fmt = implied
     fmt = fmt.lower()
     if implied is not None and implied != fmt:
-        raise _user_error(f"-o {output} has the suffix of {implied} files, not {fmt}: name it "
+        raise UserError(f"-o {output} has the suffix of {implied} files, not {fmt}: name it "
                           f"{ {'csv': '.csv', 'vtk': '.vtp (or .pvd with --all)', 'npz': '.npz'}[fmt]}")
     if fmt == "csv" and all_points:
-        raise _user_error("--all writes a series: use --format vtk (a .pvd collection for ParaView) or npz "
+        raise UserError("--all writes a series: use --format vtk (a .pvd collection for ParaView) or npz "
                           "(arrays stacked by point); a CSV holds one point (--point I)")
     if fmt == "vtk":
         if all_points and ext != ".pvd":
-            raise _user_error(f"--all --format vtk writes a ParaView collection: name it .pvd "
+            raise UserError(f"--all --format vtk writes a ParaView collection: name it .pvd "
                               f"(-o {os.path.splitext(output)[0]}.pvd; the .vtp files go beside it)")
         if not all_points and ext == ".pvd":
-            raise _user_error(f"-o {output}: a .pvd collection is written with --all; name one point's file .vtp")
+            raise UserError(f"-o {output}: a .pvd collection is written with --all; name one point's file .vtp")
     return fmt
 
 
@@ -167,46 +160,52 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, over
     """
     path, spec_branch, spec_point, diagram = _branch_spec(file)
     if spec_point is not None and point is not None and spec_point.strip() != point.strip():
-        raise _user_error(f"two points named: {file} and --point {point}")
+        raise UserError(f"two points named: {file} and --point {point}")
     point = point if point is not None else spec_point
     if all_points and point is not None:
-        raise _user_error("give --point or --all, not both")
+        raise UserError("give --point or --all, not both")
     if not all_points and point is None:
-        raise _user_error("which point? give --point I|F<j>|BP<j> (or --all for the whole branch)")
+        raise UserError("which point? give --point I|F<j>|BP<j> (or --all for the whole branch)")
     _check_output(output, diagram, overwrite, series=all_points)
     fmt = _format(output, fmt, all_points)
     data = _pick_branch(path, diagram, spec_branch, branch)
-    from .branchfile import BranchFileError
-    from .export import ExportError, export_branch, export_point, series_dir
+    from ..branchfile import BranchFileError
+    from ..export import ExportError, export_point
     if all_points and fmt == "vtk":
         _series_not_inputs(output, len(data), diagram)
     if all_points:
-        if samples * len(data) > MAX_SERIES_VALUES:
-            raise _user_error(f"--all with --samples {samples} on {len(data)} points is {samples * len(data):,} "
-                              f"samples (at most {MAX_SERIES_VALUES:,}): lower --samples")
-        d = series_dir(output) if fmt == "vtk" else None
-        if d is not None and os.path.lexists(d) and not os.path.isdir(d):
-            raise _user_error(f"cannot write the series: {d} exists and is not a directory")
-        made = d is not None and not os.path.exists(d)
-        try:
-            n = export_branch(data, output, fmt, samples, grid, overwrite=overwrite)
-        except (ExportError, BranchFileError, OSError) as exc:
-            if made:  # leave nothing half-written behind
-                import shutil
-                shutil.rmtree(d, ignore_errors=True)
-            msg = f"cannot write {output}: {exc.strerror}" if isinstance(exc, OSError) and exc.strerror else str(exc)
-            raise _user_error(msg) from None
-        extra = f", one .vtp per point in {series_dir(output)}" if fmt == "vtk" else ""
-        click.echo(f"wrote {output} ({n} points, {samples} samples each{extra})")
-        return
+        return _export_series(data, output, fmt, samples, grid, overwrite)
     try:
         i = data.resolve(point)
         export_point(data, point.strip(), output, fmt, samples, grid)
     except (ExportError, BranchFileError) as exc:
-        raise _user_error(str(exc)) from None
+        raise UserError(str(exc)) from None
     except OSError as exc:
-        raise _user_error(f"cannot write {output}: {exc.strerror or exc}") from None
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output} (point {i}, Φ = {float(data.branch['phi_L'][i]):.10g}, {samples} samples)")
+
+
+def _export_series(data, output, fmt, samples, grid, overwrite) -> None:
+    """``export --all``: every point of the branch, a .pvd series of .vtp files or stacked arrays (.npz)."""
+    from ..branchfile import BranchFileError
+    from ..export import ExportError, export_branch, series_dir
+    if samples * len(data) > MAX_SERIES_VALUES:
+        raise UserError(f"--all with --samples {samples} on {len(data)} points is {samples * len(data):,} "
+                        f"samples (at most {MAX_SERIES_VALUES:,}): lower --samples")
+    d = series_dir(output) if fmt == "vtk" else None
+    if d is not None and os.path.lexists(d) and not os.path.isdir(d):
+        raise UserError(f"cannot write the series: {d} exists and is not a directory")
+    made = d is not None and not os.path.exists(d)
+    try:
+        n = export_branch(data, output, fmt, samples, grid, overwrite=overwrite)
+    except (ExportError, BranchFileError, OSError) as exc:
+        if made:  # leave nothing half-written behind
+            import shutil
+            shutil.rmtree(d, ignore_errors=True)
+        msg = f"cannot write {output}: {exc.strerror}" if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise UserError(msg) from None
+    extra = f", one .vtp per point in {series_dir(output)}" if fmt == "vtk" else ""
+    click.echo(f"wrote {output} ({n} points, {samples} samples each{extra})")
 
 
 @click.command("animate")
@@ -228,21 +227,21 @@ def animate_cmd(file, branch, output, fps, samples, max_frames, title, overwrite
     """
     ext = os.path.splitext(output)[1].lower()
     if ext not in (".gif", ".mp4"):
-        raise _user_error(f"-o {output}: animations are written as .gif or .mp4 (name it so)")
+        raise UserError(f"-o {output}: animations are written as .gif or .mp4 (name it so)")
     path, spec_branch, spec_point, diagram = _branch_spec(file)
     if spec_point is not None:
-        raise _user_error(f"animate shows a whole branch: give {path} or {path}:<branch>, not a point")
+        raise UserError(f"animate shows a whole branch: give {path} or {path}:<branch>, not a point")
     _check_output(output, diagram, overwrite)
-    from .export import ExportError, animate, ffmpeg_available
+    from ..export import ExportError, animate, ffmpeg_available
     if ext == ".mp4" and not ffmpeg_available():
-        raise _user_error("writing MP4 needs ffmpeg, which is not installed (not on PATH): install it, "
+        raise UserError("writing MP4 needs ffmpeg, which is not installed (not on PATH): install it, "
                           "or write a .gif")
     data = _pick_branch(path, diagram, spec_branch, branch)
     others = [b for b in diagram.branches if b is not data]
     try:
         n = animate(data, output, fps=fps, samples=samples, max_frames=max_frames, others=others, title=title)
     except ExportError as exc:
-        raise _user_error(str(exc)) from None
+        raise UserError(str(exc)) from None
     except OSError as exc:
-        raise _user_error(f"cannot write {output}: {exc.strerror or exc}") from None
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output} ({n} frames of {len(data)} points)")

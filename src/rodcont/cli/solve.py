@@ -1,0 +1,99 @@
+"""``rodcont solve``: one equilibrium, reached by loading Phi (or the end torque) up from 0."""
+
+from __future__ import annotations
+
+import math
+
+import click
+
+from .app import main_group
+from .common import UserError, check_out, conduit_of, explicit, file_meta, make_rod, stretch_warning, tension_of
+from .options import check_number, rod_options
+
+
+@main_group.command()
+@click.option("--gamma", type=float, default=None, callback=check_number("--gamma"),
+             help="tension ratio T / (w L) (or --T)")
+@click.option("--phi", "phi", type=float, default=None, callback=check_number("--phi"),
+              help="end rotation Phi [rad] (or --torque)")
+@click.option("--torque", type=float, default=None, callback=check_number("--torque"),
+              help="end torque M instead of --phi: Phi becomes an unknown (printed as phi_L)")
+@click.option("--l0", "l0", type=float, default=None, callback=check_number("--l0", positive=True),
+              help="unstressed length instead of --gamma/--T: the tension becomes an unknown (printed as T)")
+@click.option("--load-step", type=float, default=0.5, show_default=True,
+             callback=check_number("--load-step", positive=True),
+              help="Phi increment of the natural continuation from 0 (under --torque: GJ/L times it)")
+@click.option("--conduit", type=click.Path(dir_okay=False), default=None,
+              help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
+                   "the rod stays inside it, touching its wall where it must")
+@click.option("--max-error", type=float, default=1e-6, show_default=True,
+              callback=check_number("--max-error", positive=True), help="accuracy guard on the estimated error")
+@click.option("--uniform", is_flag=True, help="keep the first mesh (no refinement)")
+@click.option("--N-max", "N_max", type=click.IntRange(1, 20000), default=4000, show_default=True,
+              help="largest mesh the refinement may reach")
+@click.option("--out", default=None, type=click.Path(dir_okay=False),
+              help="write the equilibrium as a one-point branch file (export, shape, trace --start read it)")
+@click.option("--overwrite", is_flag=True, help="replace --out if it exists")
+@rod_options
+def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ, EA,
+          L):
+    """One equilibrium at (Gamma, Phi), reached by loading Phi (or the end torque) up from 0.
+
+    The mesh starts from the problem's lengths (or --N) and is refined until the
+    estimated error (a re-solve in a richer space, as trace's accuracy guard) is
+    below --max-error and, in a conduit, the side force's below 1e-3; a result far
+    above them is refused. Prints `name value` lines: the controls (T, gamma,
+    phi_L, torque, l0) and responses (stretch, helical_waves, min_alignment, in a
+    conduit min_gap, side_force and the contact zones), Newton's iterations and
+    residual norm, the mesh N, the error estimates (what to trust).
+    """
+    from ..drivers.solve import ConvergenceError, solve_equilibrium, write_equilibrium
+    rod = make_rod(w, EI, GJ, EA, L)
+    T = click.get_current_context().meta.get("rodcont.T")
+    if l0 is not None and (gamma is not None or T is not None):
+        raise UserError("give one of --gamma, --T and --l0")
+    if l0 is None:
+        gamma, T = tension_of(gamma, rod)
+    if (phi is None) == (torque is None):
+        raise UserError("give --phi (the end rotation) or --torque (the end torque), one of them")
+    try:
+        curve, wall = conduit_of(conduit, rod)
+        if out is not None:
+            check_out(out, [conduit] if conduit is not None else [], overwrite)
+        if T is not None:
+            stretch_warning(rod, T)
+        eq = solve_equilibrium(None if T is not None else gamma, phi, rod, N=N if explicit("N") else None, k=k,
+                               load_step=load_step, T=T, curve=curve, wall=wall, torque=torque, l0=l0,
+                               adapt=not uniform, max_error=max_error, N_max=N_max, strict=True)
+    except (ConvergenceError, ValueError, TypeError) as exc:
+        raise UserError(str(exc)) from None
+    _print_equilibrium(eq, wall is not None)
+    if out is not None:
+        write_equilibrium(eq, out, overwrite=overwrite, meta=file_meta(), max_error=max_error)
+        click.echo(f"wrote {out}", err=True)
+
+
+def _print_equilibrium(eq, conduit: bool) -> None:
+    o = eq.outputs
+    for name in ("T", "gamma", "phi_L", "torque", "l0", "stretch"):
+        if name != "gamma" or math.isfinite(o[name]):
+            click.echo(f"{name} {o[name]:.15g}")
+    click.echo(f"helical_waves {o['helical_waves']}")
+    click.echo(f"min_alignment {o['min_alignment']:.15g}")
+    if conduit:
+        c = eq.contact()
+        click.echo(f"min_gap {c['min_gap']:.6g}")
+        click.echo(f"side_force {c['side_force']:.10g}")
+        for a, b, f in c["zones"]:
+            click.echo(f"contact {a:.6g} {b:.6g} {f:.10g}" + ("  (point)" if a == b else ""))
+        click.echo(f"force_scale {o['force_scale']:.6g}")
+    click.echo(f"newton_iterations {eq.newton.iterations}")
+    click.echo(f"residual_norm {eq.newton.residual_norm:.6g}")
+    click.echo(f"N {o['N']}")
+    click.echo(f"error {eq.error:.2g}")
+    if conduit:
+        click.echo(f"side_force_error {eq.side_force_error:.2g}")
+    for said in eq.notes:
+        click.echo(f"rodcont: note: {said}", err=True)
+    for said in eq.warnings:
+        click.echo(f"rodcont: warning: {said}", err=True)
