@@ -13,7 +13,8 @@ import click
 from .app import main_group
 from .common import (UserError, check_out, explicit, file_meta, load_any_file, load_branch_file, make_rod,
                      reference_curve, stretch_warning, tension_of)
-from .options import check_number, given_options, rod_changes, rod_options, trace_kwargs, trace_options
+from .options import check_number, rod_options
+from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
 from .tables import diagram_branches, diagram_folds, diagram_unfinished, fold_table, user_folds
 
@@ -74,8 +75,7 @@ def diagram(**given):
     fold table with the waves on each side (+1 wave marks a fold that adds one).
     """
     a = SimpleNamespace(**given)
-    kw = trace_kwargs(a.phi_max, a.phi_min, a.stretch_max, a.max_steps, a.ds, a.ds_max, a.ds_min, a.min_alignment,
-                      a.max_error, a.max_defect, a.fold_error, a.forced, a.uniform, a.N_max, a.store_every)
+    kw = trace_kwargs(a)
     rod = make_rod(a.w, a.EI, a.GJ, a.EA, a.L)
     reference_curve(rod, "diagram")
     if a.resume_file is not None:

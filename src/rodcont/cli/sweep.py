@@ -11,7 +11,8 @@ import click
 
 from .app import main_group
 from .common import UserError, input_files, make_rod, reference_curve, stretch_warning
-from .options import GreedyFloats, check_number, rod_options, trace_kwargs, trace_options
+from .options import GreedyFloats, check_number, rod_options
+from .trace_options import trace_kwargs, trace_options
 
 
 @main_group.command()
@@ -30,8 +31,7 @@ def sweep(**given):
     from ..drivers.sweep import sweep as run_sweep
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("sweep runs one branch per --gamma; --T is for a single trace or diagram")
-    kw = trace_kwargs(a.phi_max, a.phi_min, a.stretch_max, a.max_steps, a.ds, a.ds_max, a.ds_min, a.min_alignment,
-                      a.max_error, a.max_defect, a.fold_error, a.forced, a.uniform, a.N_max, a.store_every)
+    kw = trace_kwargs(a)
     rod = make_rod(a.w, a.EI, a.GJ, a.EA, a.L)
     curve = reference_curve(rod, "sweep --diagram" if a.whole else None)
     if curve is not None:

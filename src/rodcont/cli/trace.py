@@ -12,7 +12,8 @@ import click
 from .app import main_group
 from .common import (UserError, check_out, conduit_of, explicit, file_identity, file_meta, load_any_file,
                      load_branch_file, make_rod, point_spec, reference_curve, stretch_warning, tension_of)
-from .options import check_number, given_options, rod_changes, rod_options, trace_kwargs, trace_options
+from .options import check_number, rod_options
+from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
 from .tables import fold_table, fold_warnings
 
@@ -60,8 +61,7 @@ def trace(**given):
     given override them); --resume FILE.h5 continues an interrupted trace in place.
     """
     a = SimpleNamespace(**given)
-    kw = trace_kwargs(a.phi_max, a.phi_min, a.stretch_max, a.max_steps, a.ds, a.ds_max, a.ds_min, a.min_alignment,
-                      a.max_error, a.max_defect, a.fold_error, a.forced, a.uniform, a.N_max, a.store_every)
+    kw = trace_kwargs(a)
     kw["direction"] = 1 if a.direction == "up" else -1
     if a.resume_file is not None:
         return _resume_trace(a.resume_file, a.extend, a.out, a.start, a.from_straight, a.switch, a.param, a.prange,

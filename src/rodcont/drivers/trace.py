@@ -7,7 +7,7 @@ curve, status ``validity_guard``; the stretch factor reaching 0; ``stretch_max``
 contact-zone detector of each mesh in a conduit (:class:`ZoneChangeDetector`), the count of
 unstable modes of each stored point (:class:`StabilityCount`, an observer), and a recorder
 that writes the branch file as it goes (:class:`Recorder`). :class:`TraceOptions` names every
-knob once; the engine's settings are made from them.
+knob once (:mod:`rodcont.settings`); the engine's settings are made from them.
 
 Every guard and bound is also checked at the first point: a start already
 outside them is refused (``ValueError``), one on a bound and heading out of
@@ -21,17 +21,18 @@ import json
 import math
 import warnings
 from dataclasses import asdict, dataclass, fields
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 
-from ..adaptive import Accuracy, AdaptiveContinuation, AdaptiveSettings, Hints, ResultRecorder, StartError
+from ..adaptive import Accuracy, AdaptiveContinuation, Hints, ResultRecorder, StartError
 from ..branch import CONTACT_COLUMNS, Branch
 from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation,
                             Tracker)
 from ..linalg import scaled_smallest_singular_value
 from ..result import Status
 from ..rod import RodParameters
+from ..settings import TraceOptions
 from ..system import SYSTEM_PARAMS, RodSystem, check_number, controls_spec
 from .solve import check_tension
 
@@ -42,89 +43,6 @@ __all__ = ["Accuracy", "Recorder", "StabilityCount", "TraceError", "TraceOptions
 class TraceError(StartError):
     """A trace that cannot start (the message says why, in one line)."""
 
-
-@dataclass
-class TraceOptions:
-    """Every knob of a trace, named once, with its default; checked when made.
-
-    ``max_error``: the accuracy guard, on the estimated error of the stored
-    outputs and centreline (relative; :class:`rodcont.mesh.ErrorEstimator`).
-    ``adapt``: rebuild the mesh when the error passes ``max_error / 100``
-    (up to ``N_max`` subintervals); ``False`` keeps the first mesh.
-    ``p_range``: bounds of the continued parameter when it is not ``phi_L``.
-    ``fold_error``: a fold whose estimated error is larger is located again on
-    a mesh refined for it (with ``adapt``).
-    """
-
-    phi_max: float = 40.0
-    phi_min: float = -1.0
-    stretch_max: float | None = None
-    min_alignment: float = 0.05
-    max_error: float = 1e-6
-    max_steps: int = 2000
-    ds: float = 0.1
-    ds_max: float = 0.5
-    ds_min: float = 1e-6
-    forced: Sequence[float] = ()
-    adapt: bool = True
-    N_max: int = 400
-    p_range: tuple | None = None
-    direction: int = 1
-    fold_error: float = 1e-9
-
-    def __post_init__(self):
-        for name in ("phi_max", "phi_min", "ds", "ds_max", "ds_min", "max_error", "min_alignment", "fold_error"):
-            setattr(self, name, check_number(name, getattr(self, name)))
-        self.max_steps = check_number("max_steps", self.max_steps, integer=True)
-        self.N_max = check_number("N_max", self.N_max, integer=True)
-        self.direction = check_number("direction", self.direction, integer=True)
-        if self.stretch_max is not None:
-            self.stretch_max = check_number("stretch_max", self.stretch_max)
-        if not isinstance(self.adapt, (bool, np.bool_)):
-            raise TypeError(f"adapt must be True or False, got {self.adapt!r}")
-        if not isinstance(self.forced, (list, tuple, np.ndarray)):
-            raise TypeError(f"forced must be a sequence of numbers, got {self.forced!r}")
-        self.forced = tuple(check_number("forced", v) for v in self.forced)
-        if self.p_range is not None:
-            if not isinstance(self.p_range, (list, tuple)) or len(self.p_range) != 2:
-                raise TypeError(f"p_range must be a pair (lo, hi), got {self.p_range!r}")
-            lo, hi = (check_number("range", v) for v in self.p_range)
-            if not lo < hi:
-                raise ValueError(f"the range must be given as A B with A < B, got {lo:g} {hi:g}")
-            self.p_range = (lo, hi)
-        checks = [
-            (self.phi_min < self.phi_max, "phi_min must be below phi_max"),
-            (0 <= self.min_alignment < 1, "min_alignment must be in [0, 1)"),
-            (self.max_error > 0, "max_error must be positive"),
-            (self.fold_error > 0, "fold_error must be positive"),
-            (self.max_steps >= 1, "max_steps must be >= 1"),
-            (self.N_max >= 1, "N_max must be >= 1"),
-            (self.direction in (1, -1), "direction must be +1 or -1"),
-            (0 < self.ds_min <= self.ds <= self.ds_max,
-             f"need 0 < ds_min <= ds <= ds_max, got {self.ds_min:g}, {self.ds:g}, {self.ds_max:g}"),
-        ]
-        for ok, msg in checks:
-            if not ok:
-                raise ValueError(msg)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
-    def continuation_settings(self, param: str) -> ContinuationSettings:
-        """The tracker's settings: steps, the parameter's bounds (``phi_min, phi_max`` or ``p_range``)."""
-        if param == "phi_L":
-            p_min, p_max = self.phi_min, self.phi_max
-        elif self.p_range is not None:
-            p_min, p_max = self.p_range
-        else:
-            raise TraceError(f"a trace in {param} needs its range (p_range / --range A B)")
-        return ContinuationSettings(ds=self.ds, ds_min=self.ds_min, ds_max=self.ds_max, p_min=p_min, p_max=p_max,
-                                    max_steps=self.max_steps, direction=self.direction, forced=tuple(self.forced))
-
-    def adaptive_settings(self) -> AdaptiveSettings:
-        """The adaptive loop's settings (its other limits at their defaults)."""
-        return AdaptiveSettings(max_error=self.max_error, fold_error=self.fold_error, adapt=self.adapt,
-                                N_max=self.N_max)
 
     def events(self) -> list[Event]:
         """The rod's guards: validity (the Eulerian description ends), a stretch factor through 0, and
