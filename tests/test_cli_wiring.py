@@ -60,3 +60,93 @@ def test_relations_between_options_are_the_library_s_named_as_options(tmp_path, 
     code, out, err = run(["diagram", "--gamma", "1", "--phi-min", "3", "--phi-max", "2", "--out", tmp_path / "d.h5"],
                          capsys)
     assert_one_line_error(code, out, err, "--phi-min must be below --phi-max")
+
+
+# --------------------------------------------------------------------------
+# Warnings reach the user (issue 22 item 15)
+# --------------------------------------------------------------------------
+def test_the_library_s_warnings_are_said_and_numpy_s_noise_is_not(capsys):
+    import warnings
+
+    import click
+    import numpy as np
+
+    @main_group.command("warns-for-the-test")
+    def warns():
+        with np.errstate(over="warn"):
+            np.float64(1e308) * np.float64(10.0)  # numpy: "overflow encountered in scalar multiply"
+        warnings.warn("the library's own\n   warning", RuntimeWarning)
+        click.echo("done")
+
+    try:
+        code, out, err = run(["warns-for-the-test"], capsys)
+    finally:
+        del main_group.commands["warns-for-the-test"]
+    assert code == 0 and out == "done\n"
+    assert err == "rodcont: warning: the library's own warning\n"
+
+
+def test_a_weightless_rod_is_told_why_its_crossings_hide(tmp_path, capsys):
+    """The straight weightless rod under length control buckles at its critical twist (13.4626) with two
+    eigenvalues at once (a circle of helical modes): the library says so and what separates them (a weight
+    across the axis), and the command line passes that on, not the advice of a smaller step."""
+    code, out, err = run(["trace", "--w", "0", "--l0", "0.97", "--from-straight", "5", "--phi-max", "18",
+                          "--out", tmp_path / "w0.h5", "--quiet"], capsys)
+    assert code == 0, err
+    line, = [ln for ln in out.splitlines() if ln.startswith("warning      unstable modes 0 -> 2")]
+    assert "cross in pairs: a weight across the axis" in line and "--ds-max" not in line
+    said = [ln for ln in err.splitlines() if ln.startswith("rodcont: warning: the number of unstable modes")]
+    assert len(said) == 1 and "cross in pairs" in said[0]
+    a, b = (float(v) for v in line.split("between phi_L = ")[1].split(":")[0].split(" and "))
+    assert a < 13.462584514002 < b  # the closed-form critical twist (rodcont critical --w 0 --T 7.8866)
+
+
+# --------------------------------------------------------------------------
+# Names (issue 22 item 16)
+# --------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def g1_fold(tmp_path_factory):
+    """The primary branch at Gamma = 1 through its first fold."""
+    import contextlib
+    import io
+
+    from rodcont.cli import main
+    path = tmp_path_factory.mktemp("names") / "g1.h5"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()), \
+            pytest.raises(SystemExit) as exc:
+        main(["trace", "--gamma", "1", "--phi-max", "15", "--out", str(path), "--quiet"])
+    assert exc.value.code == 0
+    return path
+
+
+def test_fold_curve_takes_the_fold_labels_folds_prints(g1_fold, tmp_path, capsys):
+    import h5py
+    code, out, err = run(["folds", g1_fold], capsys)
+    assert code == 0 and out.splitlines()[2].startswith("F1 ")
+    rows = {}
+    for spec in ("0", "F1"):
+        code, out, err = run(["fold-curve", f"{g1_fold}:{spec}", "--range", "0.95", "1.05", "--out",
+                              tmp_path / f"c{spec}.h5", "--quiet"], capsys)
+        assert code == 0, err
+        assert "stop reasons down: parameter bound gamma_min = 0.95 reached; up: parameter bound gamma_max = 1.05" \
+            in out
+        with h5py.File(tmp_path / f"c{spec}.h5", "r") as f:
+            rows[spec] = (f["branch/gamma"][()], f["branch/phi_L"][()])
+    assert (rows["0"][0] == rows["F1"][0]).all() and (rows["0"][1] == rows["F1"][1]).all()
+    code, out, err = run(["fold-curve", f"{g1_fold}:F2", "--range", "0.95", "1.05", "--out", tmp_path / "x.h5"],
+                         capsys)
+    assert_one_line_error(code, out, err, "F2")
+
+
+def test_a_trace_in_T_speaks_of_T(tmp_path, capsys):
+    code, out, err = run(["trace", "--gamma", "1", "--phi-max", "2", "--out", tmp_path / "a.h5", "--quiet"], capsys)
+    assert code == 0, err
+    code, out, err = run(["trace", "--start", f"{tmp_path / 'a.h5'}:-1", "--param", "T", "--range", "5", "12",
+                          "--out", tmp_path / "b.h5"], capsys)
+    assert code == 0, err
+    assert "stop reason  parameter bound T_max = 12 reached" in out
+    assert "  bound          at T = 12, stretch = " in err and "Phi =" not in err
+    assert "point     1  T        10  Phi   2.00000" in err  # the start: T = gamma w L = 10, at Phi = 2
+    code, out, err = run(["trace", "--start", f"{tmp_path / 'a.h5'}:-1", "--param", "T", "--range", "20", "30",
+                          "--out", tmp_path / "c.h5"], capsys)
+    assert_one_line_error(code, out, err, "the start T = 10 is outside the bounds [20, 30]")

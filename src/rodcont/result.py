@@ -71,6 +71,16 @@ def event_label(kind: str) -> tuple[str, str]:
     return "_".join(words).lower() or "event", text
 
 
+def in_terms_of(message: str, param: str) -> str:
+    """An engine message, which calls the continued parameter ``p`` (its bounds ``p_min``, ``p_max``), in the
+    words of a trace in ``param``: ``T = 5``, ``T_max``. A trace in ``phi_L`` keeps them (``p`` is Phi there)."""
+    if param in (None, "phi_L"):
+        return message
+    import re
+    message = re.sub(r"\bp_(min|max)\b", lambda m: f"{param}_{m.group(1)}", message)
+    return re.sub(r"\bp = ", f"{param} = ", message)
+
+
 def status_from_message(message: str) -> Status:
     """The status a stop sentence of the generic tracker and engine stands for (files written before the
     status was stored). Drivers extend it with their own events (:func:`rodcont.branch.infer_status`)."""

@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from .common import EXIT_USAGE, PENDING, echo_err, flush_pending
+from .common import EXIT_USAGE, NUMPY_NOISE, PENDING, echo_err, flush_pending, show_warning
 
 
 @click.group(context_settings=dict(help_option_names=["-h", "--help"]))
@@ -21,9 +21,16 @@ def main_group(ctx, debug):
 
 
 def main(argv=None):
-    """Entry point: click's parsing with one-line errors and exit status 2."""
+    """Entry point: click's parsing with one-line errors and exit status 2; the library's warnings said as
+    ``rodcont: warning: ...`` lines once the command has ended (numpy's floating-point noise not)."""
     import warnings
-    warnings.simplefilter("ignore", RuntimeWarning)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=NUMPY_NOISE, category=RuntimeWarning)
+        warnings.showwarning = show_warning
+        _main(argv)
+
+
+def _main(argv):
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     PENDING.clear()
     try:

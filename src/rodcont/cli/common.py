@@ -126,6 +126,28 @@ def flush_pending() -> None:
         echo_err(f"rodcont: warning: {PENDING.pop(0)}")
 
 
+# numpy's floating-point noise (an overflow in a rejected trial step, ...), not something the library says
+NUMPY_NOISE = r"(overflow|underflow|invalid value|divide by zero) encountered"
+
+
+def worded(message: str) -> str:
+    """A library message in one line, in the words of the parameter this command continues (its ``T = 5``
+    for the engine's ``p = 5``: :func:`rodcont.result.in_terms_of`)."""
+    ctx = click.get_current_context(silent=True)
+    param = ctx.meta.get("rodcont.param") if ctx is not None else None
+    text = " ".join(str(message).split())
+    if param in (None, "phi_L"):
+        return text
+    from ..result import in_terms_of
+    return in_terms_of(text, param)
+
+
+def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` while a command runs: what the library warns of is said once the command has
+    ended, one line each (``rodcont: warning: ...``)."""
+    warn_later(worded(str(message)))
+
+
 def _read(loader, *args):
     """A branch or diagram file read by ``loader``; a file without rodcont's checksum is read and said so."""
     import warnings

@@ -12,7 +12,7 @@ import click
 
 from .app import main_group
 from .common import (UserError, check_out, explicit, file_meta, load_any_file, load_branch_file, make_rod,
-                     reference_curve, stretch_warning, tension_of)
+                     reference_curve, stretch_warning, tension_of, worded)
 from .options import check_number, rod_options
 from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
@@ -21,7 +21,7 @@ from .tables import diagram_branches, diagram_folds, diagram_unfinished, fold_ta
 
 @main_group.command()
 @click.option("--gamma", type=float, default=None, callback=check_number("--gamma"),
-             help="tension ratio T / (w L) (or --T)")
+              help="tension ratio T / (w L) (or --T)")
 @click.option("--phi-max", type=float, default=40.0, show_default=True, callback=check_number("--phi-max"))
 @click.option("--phi-min", type=float, default=0.0, show_default=True, callback=check_number("--phi-min"))
 @rod_options
@@ -54,7 +54,7 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 
 @main_group.command()
 @click.option("--gamma", type=float, default=None, callback=check_number("--gamma"),
-             help="tension ratio T / (w L) (or --T)")
+              help="tension ratio T / (w L) (or --T)")
 @trace_options
 @click.option("--deflate", "deflate_at", type=float, multiple=True, callback=check_number("--deflate"),
               help="a Phi where deflated Newton looks for solutions the seeds missed (repeatable)")
@@ -191,7 +191,7 @@ def folds(file):
 @click.option("--ds-max", type=float, default=0.5, show_default=True, callback=check_number("--ds-max", positive=True))
 @click.option("--max-steps", type=click.IntRange(1, 10**6), default=500, show_default=True)
 @click.option("--max-error", type=float, default=1e-6, show_default=True,
-             callback=check_number("--max-error", positive=True),
+              callback=check_number("--max-error", positive=True),
               help="accuracy guard on the estimated error of each fold")
 @click.option("--forced", type=float, multiple=True, callback=check_number("--forced"),
               help="a parameter value that gets a point of its own")
@@ -208,8 +208,9 @@ def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced
     path, branch, fold = _fold_spec(spec)
     data = load_branch_file(path, branch)
     check_out(out, [path], overwrite, loaded=(data,))
+    click.get_current_context().meta["rodcont.param"] = param
     with Interrupts() as intr:
-        progress = Progress(quiet, intr)
+        progress = Progress(quiet, intr, param)
         t0 = time.perf_counter()
         try:
             res = fold_curve(data, fold, param, prange[0], prange[1], out=out, ds=ds, ds_max=ds_max,
@@ -220,12 +221,12 @@ def fold_curve_cmd(spec, param, prange, ds, ds_max, max_steps, max_error, forced
             click.echo(f"interrupted: {out} holds the points computed so far", err=True)
             sys.exit(intr.exit_code)
         except (ValueError, TypeError) as exc:
-            raise UserError(str(exc)) from None
+            raise UserError(worded(str(exc))) from None
     progress.done()
     if len(res) <= 1:
-        raise UserError(f"the fold could not be continued: {res.message_first}; {res.message}")
+        raise UserError(f"the fold could not be continued: {worded(res.message_first)}; {worded(res.message)}")
     click.echo(f"points       {len(res)}")
-    click.echo(f"stop reasons down: {res.message_first}; up: {res.message}")
+    click.echo(f"stop reasons down: {worded(res.message_first)}; up: {worded(res.message)}")
     click.echo(f"time         {time.perf_counter() - t0:.3f} s")
     click.echo(f"{param:>12} {'phi_L':>18} {'stretch':>16} {'torque':>14} kind")
     for i in range(len(res)):

@@ -42,8 +42,9 @@ class Interrupts:
 class Progress:
     """One status line on a terminal (rewritten in place), a line every few seconds otherwise."""
 
-    def __init__(self, quiet: bool, interrupts: Interrupts | None = None):
+    def __init__(self, quiet: bool, interrupts: Interrupts | None = None, param: str = "phi_L"):
         self.quiet = quiet
+        self.name = "Phi" if param == "phi_L" else param  # the continued parameter, by its name
         self.tty = sys.stderr.isatty()
         self.last = 0.0
         self.n = 0
@@ -58,11 +59,13 @@ class Progress:
         if not self.quiet:
             now = time.perf_counter()
             d = pt.data
-            msg = (f"point {self.n:5d}  Phi {d['phi_L']:9.5f}  stretch {d['stretch']:10.6f}  "
+            lead = "" if self.name == "Phi" else f"{self.name} {pt.p:9.5g}  "
+            msg = (f"point {self.n:5d}  {lead}Phi {d['phi_L']:9.5f}  stretch {d['stretch']:10.6f}  "
                    f"waves {d['helical_waves']}  min d3.K3 {d['min_alignment']:.3f}  folds {self.folds}  "
                    f"{now - self.t0:6.1f} s")
             if str(pt.kind) not in ("regular", "start"):
-                click.echo(("\r" if self.tty else "") + f"  {str(pt.kind)[:60]:<14s} at Phi = {d['phi_L']:.10f}, "
+                at = f"Phi = {d['phi_L']:.10f}" if self.name == "Phi" else f"{self.name} = {pt.p:.10g}"
+                click.echo(("\r" if self.tty else "") + f"  {str(pt.kind)[:60]:<14s} at {at}, "
                            f"stretch = {d['stretch']:.10f}" + " " * 20, err=True)
             if self.tty:
                 click.echo("\r" + msg, nl=False, err=True)

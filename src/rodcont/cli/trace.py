@@ -11,7 +11,7 @@ import click
 
 from .app import main_group
 from .common import (UserError, check_out, conduit_of, explicit, file_identity, file_meta, load_any_file,
-                     load_branch_file, make_rod, point_spec, reference_curve, stretch_warning, tension_of)
+                     load_branch_file, make_rod, point_spec, reference_curve, stretch_warning, tension_of, worded)
 from .options import check_number, rod_options
 from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
@@ -107,7 +107,7 @@ def _trace_from_point(a, kw) -> None:
     args.pop("gamma", None)
     _range_stretch_warning(rod, a.param, a.prange)
     _run_trace(run_trace, None, rod, N, k, T, {}, dict(args, meta=file_meta()), a.out, a.overwrite, a.quiet,
-               restart=True)
+               restart=True, param=args.get("param", a.param))
 
 
 def _trace_tension(a, rod):
@@ -150,7 +150,7 @@ def _trace_from_start(a, kw) -> None:
         stretch_warning(rod, T)
     extra["meta"] = file_meta()
     _range_stretch_warning(rod, a.param, a.prange)
-    _run_trace(run_trace, None, rod, a.N, a.k, T, kw, extra, a.out, a.overwrite, a.quiet)
+    _run_trace(run_trace, None, rod, a.N, a.k, T, kw, extra, a.out, a.overwrite, a.quiet, param=a.param)
 
 
 def _restart_args(data, label, spec, param, switch, N, k, conduit, kw):
@@ -206,22 +206,24 @@ def _resume_trace(path, extend, out, start, from_straight, switch, param, prange
         return resume(path, extend=extend, changes=rod_changes(), options=options, callback=callback, check=check,
                       data=d)
 
-    _traced(run, path, quiet, resumed=True)
+    _traced(run, path, quiet, resumed=True, param=data.param)
 
 
-def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet, restart=False):
+def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet, restart=False, param="phi_L"):
     def run(callback):
         return run_trace(gamma, rod, N=N, k=k, T=T, out=out, overwrite=overwrite, callback=callback, **extra, **kw)
 
-    _traced(run, out, quiet, restart=restart)
+    _traced(run, out, quiet, restart=restart, param=param)
 
 
-def _traced(run, out, quiet, restart=False, resumed=False):
-    """Run a trace into ``out`` with progress and Ctrl-C between points; print its summary."""
+def _traced(run, out, quiet, restart=False, resumed=False, param="phi_L"):
+    """Run a trace in ``param`` into ``out`` with progress and Ctrl-C between points; print its summary (what
+    the library says, in the words of ``param``)."""
     from ..restart import start_hint
+    click.get_current_context().meta["rodcont.param"] = param
     before = file_identity(out)
     with Interrupts() as intr:
-        progress = Progress(quiet, intr)
+        progress = Progress(quiet, intr, param)
         t0 = time.perf_counter()
         interrupted = False
         try:
@@ -229,7 +231,7 @@ def _traced(run, out, quiet, restart=False, resumed=False):
         except KeyboardInterrupt:
             interrupted = True
         except (ValueError, TypeError) as exc:
-            raise UserError(str(exc) + (start_hint(str(exc)) if restart else "")) from None
+            raise UserError(worded(str(exc)) + (start_hint(str(exc)) if restart else "")) from None
         finally:
             progress.done()
     elapsed = time.perf_counter() - t0
@@ -237,6 +239,7 @@ def _traced(run, out, quiet, restart=False, resumed=False):
         what = "interrupted before the first point" if interrupted else "no point"
         raise UserError(f"no branch traced: {what}" + (f" ({out} is as it was)" if before is not None else ""))
     data = load_branch_file(out)
+    click.get_current_context().meta["rodcont.param"] = data.param
     _summary(data, elapsed)
     if interrupted:
         click.echo(f"interrupted: {out} holds the {len(data)} completed point(s); go on with "
@@ -248,13 +251,13 @@ def _summary(data, elapsed):
     click.echo(f"points       {len(data)}")
     click.echo(f"folds        {len(data.folds.get('index', []))}")
     click.echo(f"branch pts   {len(data.branch_points.get('index', []))}")
-    click.echo(f"stop reason  {data.attrs.get('stop_reason')}")
+    click.echo(f"stop reason  {worded(data.attrs.get('stop_reason'))}")
     click.echo(f"time         {elapsed:.3f} s")
     import json
     for a, b, n0, n1 in json.loads(data.attrs.get("missed_crossings", "[]")):
         click.echo(f"warning      unstable modes {n0} -> {n1} between {data.param} = {a:.10g} and {b:.10g}: "
                    f"more eigenvalues crossed zero than the located folds and branch points account for "
-                   f"(unseen bifurcations; retrace with a smaller --ds-max)")
+                   f"(unseen bifurcations): {_crossing_advice(data)}")
     fold_warnings(data)
     for kind, a, b in json.loads(data.attrs.get("unlocated", "[]")):
         click.echo(f"warning      a {kind.replace('_', ' ')} between {data.param} = {a:.10g} and {b:.10g} was "
@@ -265,3 +268,10 @@ def _summary(data, elapsed):
     for j in range(len(bp.get("index", []))):
         click.echo(f"BP{j + 1:<3d} {bp['index'][j]:6d} {bp['phi_L'][j]:18.12f} {bp['stretch'][j]:18.12f}  "
                    f"(follow the other branch: --start FILE:BP{j + 1} --switch)")
+
+
+def _crossing_advice(data) -> str:
+    """What the library advises for crossings unseen on the rod of ``data`` (its symmetry about the axis)."""
+    from ..drivers.trace import crossing_advice
+    from ..rod import EulerianRod
+    return crossing_advice(EulerianRod(data.rod, data.curve, data.wall), data.param)

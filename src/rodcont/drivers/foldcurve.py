@@ -108,7 +108,8 @@ class _FoldStart:
                              f"phi_L: its folds cannot be continued")
         nf = len(data.folds.get("index", []))
         if not 0 <= fold < nf:
-            raise ValueError(f"{data.label} has {nf} fold(s); fold {fold} (counted from 0) does not exist")
+            raise ValueError(f"{data.label} has {nf} fold(s); fold {fold} (counted from 0; F{fold + 1} as folds "
+                             f"labels it) does not exist")
         pt = data.point(int(data.folds["index"][fold]))
         self.k = int(data.attrs["k"]) if "k" in data.attrs else int(data.k)
         b = pt["breakpoints"]

@@ -172,14 +172,7 @@ class StabilityCount:
                       f"{bracket[0]:.10g} and {bracket[1]:.10g} across {self.crossings} located fold(s) or branch "
                       f"point(s): more eigenvalues crossed zero than were seen (the branch-point test watches a "
                       f"determinant's sign, which two crossings in one step leave unchanged); "
-                      + ("here the rod is symmetric about its axis and its eigenvalues cross in pairs: a weight "
-                         "across the axis, however small, separates them (or, weightless, trace its buckled "
-                         "branches from the critical twists: from_critical, --from-critical)"
-                         if _symmetric_about_axis(system) else
-                         "trace that interval with a smaller --ds-max to separate them; or the trace went on "
-                         "along another branch close to its own (seen in T on a rod pressed on a wall, past a "
-                         "branch point): a second trace with other steps shows which"),
-                      RuntimeWarning, stacklevel=3)
+                      + crossing_advice(system.model, system.param), RuntimeWarning, stacklevel=3)
 
     _system = None
 
@@ -923,21 +916,33 @@ class ZoneChangeDetector(Detector):
         return [] if f is None else [Finding(f.ds, f, None)]
 
 
-def _symmetric_about_axis(system: RodSystem) -> bool:
-    """Whether the rod can be turned about a straight axis as a whole: its weight does not point across
-    (weightless, or weighing along the axis) and the reference is straight (a conduit around it, of any
-    clearance profile, turns with it). Turned with its material frame turned back about its tangent, an
-    isotropic rod keeps its energy and its clamps: equilibria off the axis come in circles (a singular
-    Jacobian on them) and eigenvalues in pairs (a double crossing at each bifurcation from the axis)."""
-    model = system.model
-    if not model.constant_frame or system.param == "w":  # a trace in w changes the weight along the way
+def symmetric_about_axis(model, param: str) -> bool:
+    """Whether the rod ``model`` (an :class:`rodcont.rod.EulerianRod`) traced in ``param`` can be turned about
+    a straight axis as a whole: its weight does not point across (weightless, or weighing along the axis) and
+    the reference is straight (a conduit around it, of any clearance profile, turns with it). Turned with its
+    material frame turned back about its tangent, an isotropic rod keeps its energy and its clamps: equilibria
+    off the axis come in circles (a singular Jacobian on them) and eigenvalues in pairs (a double crossing at
+    each bifurcation from the axis)."""
+    if not model.constant_frame or param == "w":  # a trace in w changes the weight along the way
         return False
     gK = np.asarray(model.gK, float)  # the weight's direction on the frame (K1, K2 across, K3 along)
-    return system.rod.w == 0 or float(np.hypot(gK[0], gK[1]) / np.linalg.norm(gK)) <= 1e-12
+    return model.rod.w == 0 or float(np.hypot(gK[0], gK[1]) / np.linalg.norm(gK)) <= 1e-12
+
+
+def crossing_advice(model, param: str) -> str:
+    """What separates eigenvalues that crossed zero unseen on the rod ``model`` traced in ``param``: a weight
+    across the axis where the rod is symmetric about it (they cross in pairs), else a smaller step."""
+    if symmetric_about_axis(model, param):
+        return ("here the rod is symmetric about its axis and its eigenvalues cross in pairs: a weight across the "
+                "axis, however small, separates them (or, weightless, trace its buckled branches from the critical "
+                "twists: from_critical, --from-critical)")
+    return ("trace that interval with a smaller --ds-max to separate them; or the trace went on along another "
+            "branch close to its own (seen in T on a rod pressed on a wall, past a branch point): a second trace "
+            "with other steps shows which")
 
 
 def _symmetry_hint(system: RodSystem) -> str:
-    if not _symmetric_about_axis(system):
+    if not symmetric_about_axis(system.model, system.param):
         return ""
     return (" (a rod whose weight does not point across a straight reference has equilibria off its axis "
             "in circles, turned about the axis, with a singular Jacobian: give it a weight across the axis, "
