@@ -150,3 +150,102 @@ def test_a_trace_in_T_speaks_of_T(tmp_path, capsys):
     code, out, err = run(["trace", "--start", f"{tmp_path / 'a.h5'}:-1", "--param", "T", "--range", "20", "30",
                           "--out", tmp_path / "c.h5"], capsys)
     assert_one_line_error(code, out, err, "the start T = 10 is outside the bounds [20, 30]")
+
+
+# --------------------------------------------------------------------------
+# Plot and export columns in a conduit (issue 22 item 17, issue 23)
+# --------------------------------------------------------------------------
+CONDUIT = __import__("os").path.join(__import__("os").path.dirname(__file__), "..", "examples", "conduit_straight.toml")
+
+
+@pytest.fixture(scope="module")
+def in_pipe(tmp_path_factory):
+    """The paper's rod at Gamma = 1 in a straight pipe of clearance 0.01 (README): one equilibrium at Phi = 0
+    (its printed name value lines and its file) and a short trace up to Phi = 2."""
+    import contextlib
+    import io
+
+    from rodcont.cli import main
+    work = tmp_path_factory.mktemp("pipe")
+    said = {}
+    for name, argv in (("eq", ["solve", "--gamma", "1", "--phi", "0", "--conduit", CONDUIT, "--out", work / "eq.h5"]),
+                       ("tr", ["trace", "--gamma", "1", "--conduit", CONDUIT, "--phi-max", "2", "--out",
+                               work / "pipe.h5", "--quiet"])):
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()), \
+                pytest.raises(SystemExit) as exc:
+            main([str(a) for a in argv])
+        assert exc.value.code == 0
+        said[name] = out.getvalue()
+    values = {}
+    for line in said["eq"].splitlines():
+        parts = line.split()
+        if not line.startswith("#") and parts[0] != "contact":
+            values[parts[0]] = float(parts[1])
+        elif parts[0] == "contact":
+            values["zone"] = (float(parts[1]), float(parts[2]))
+    return work, values
+
+
+def test_plot_draws_the_contact_columns_where_the_files_hold_them(in_pipe, tmp_path, capsys):
+    import numpy as np
+
+    import rodcont
+    from rodcont.plots import response_diagram
+    work, _ = in_pipe
+    for y in ("side_force", "min_gap"):
+        code, out, err = run(["plot", work / "pipe.h5", "--y", y, "-o", tmp_path / f"{y}.png"], capsys)
+        assert code == 0, err
+    data = rodcont.load_diagram(str(work / "pipe.h5"))
+    fig = response_diagram([data], str(tmp_path / "lib.png"), y="side_force", x="phi_L")
+    drawn = np.concatenate([ln.get_ydata() for ln in fig.axes[0].lines if len(ln.get_ydata()) > 1])
+    assert np.array_equal(np.sort(drawn), np.sort(np.asarray(data.branches[0].branch["side_force"], float)))
+    code, out, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--out", tmp_path / "free.h5", "--quiet"],
+                         capsys)
+    assert code == 0, err
+    code, out, err = run(["plot", work / "pipe.h5", tmp_path / "free.h5", "--y", "side_force", "-o",
+                          tmp_path / "x.png"], capsys)
+    assert_one_line_error(code, out, err, "--y side_force", "free.h5 holds no side_force")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_export_writes_the_contact_fields_of_the_equilibrium(in_pipe, tmp_path, capsys):
+    """The columns against what they are: the axial force and the torque are the force's and moment's director
+    components N = F.d3 and M3 (computed another way); the gap is c - |(y, z)| of the centreline about the
+    axis e1; the pressure integrates to the side force solve printed, is in contact on the zone it printed
+    and the least gap is its min_gap."""
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+    work, said = in_pipe
+    code, out, err = run(["export", f"{work / 'eq.h5'}:0", "--samples", "4001", "-o", tmp_path / "eq.csv"], capsys)
+    assert code == 0, err
+    rows = [ln for ln in (tmp_path / "eq.csv").read_text().splitlines() if not ln.startswith("#")]
+    cols = dict(zip(rows[0].split(","), np.loadtxt(rows[1:], delimiter=",", unpack=True)))
+    S = cols["S"]
+    assert {"S", "axial_force", "torque", "pressure", "gap", "in_contact"} <= set(cols)
+    np.testing.assert_allclose(cols["axial_force"], cols["N"], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(cols["torque"], cols["M3"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cols["gap"], 0.01 - np.hypot(cols["y"], cols["z"]), rtol=0, atol=1e-12)
+    side = float(np.sum(0.5 * (cols["pressure"][1:] + cols["pressure"][:-1]) * np.diff(S)))
+    assert side == pytest.approx(said["side_force"], rel=1e-4)
+    on = S[cols["in_contact"] == 1]
+    a, b = said["zone"]
+    h = S[1] - S[0]
+    assert abs(on[0] - a) <= h and abs(on[-1] - b) <= h
+    assert cols["gap"].min() == pytest.approx(said["min_gap"], rel=1e-2)
+    code, out, err = run(["export", f"{work / 'eq.h5'}:0", "--samples", "4001", "-o", tmp_path / "eq.vtp"], capsys)
+    assert code == 0, err
+    arrays = {a.get("Name"): np.array(a.text.split(), float) for a in ET.parse(tmp_path / "eq.vtp").iter("DataArray")}
+    for name in ("axial_force", "torque", "pressure", "gap", "in_contact"):
+        np.testing.assert_allclose(arrays[name], cols[name], rtol=1e-15, atol=0)
+
+
+def test_export_without_a_conduit_has_no_contact_columns(tmp_path, capsys):
+    code, out, err = run(["trace", "--gamma", "1", "--phi-max", "1", "--out", tmp_path / "free.h5", "--quiet"],
+                         capsys)
+    assert code == 0, err
+    code, out, err = run(["export", f"{tmp_path / 'free.h5'}:-1", "-o", tmp_path / "f.csv"], capsys)
+    assert code == 0, err
+    header = [ln for ln in (tmp_path / "f.csv").read_text().splitlines() if not ln.startswith("#")][0].split(",")
+    assert header[0] == "S" and not {"axial_force", "pressure", "gap", "in_contact"} & set(header)

@@ -23,6 +23,18 @@ B-spline coefficients with the model's own kinematics
 ``alpha``      stretch factor ``1 + N / EA`` (``dr/ds = alpha d3``)
 =============  ======================================================================
 
+In a conduit (a branch file that holds contact data) also, as
+:meth:`rodcont.rod.EulerianRod.contact` defines them:
+
+===============  ====================================================================
+``axial_force``  ``F.d3`` (tension positive; the drill string's axial force)
+``torque``       ``m``, the torque about ``d3`` (``M3``)
+``pressure``     the wall's force per unit ``S`` (the contact law)
+``gap``          ``c - |Delta|``, the clearance left (negative: inside the wall)
+``in_contact``   1 where the pressure reaches the contact level the zones are found
+                 with (``contact_level P``), else 0
+===============  ====================================================================
+
 With ``f = w g`` per unit unstressed length the exported fields satisfy the
 Kirchhoff balance laws ``dF/ds + f = 0`` and ``dM/ds + (dr/ds) x F = 0``
 (to the accuracy of the collocation solution; ``tests/test_export.py``
@@ -71,7 +83,13 @@ LAYOUT = (
     ("M2", ("M2",), "force*length"),
     ("M3", ("M3",), "force*length"),
     ("alpha", ("alpha",), "1"),
+    ("axial_force", ("axial_force",), "force"),
+    ("torque", ("torque",), "force*length"),
+    ("pressure", ("pressure",), "force/length"),
+    ("gap", ("gap",), "length"),
+    ("in_contact", ("in_contact",), "1"),
 )
+CONTACT_FIELDS = ("axial_force", "torque", "pressure", "gap", "in_contact")
 FIELD_NAMES = tuple(name for name, _, _ in LAYOUT)
 MAX_SAMPLES = 1_000_000
 _QUAD = 8  # Gauss points per piece for the unstressed arclength
@@ -188,9 +206,19 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     L = float(disc.breakpoints[-1])
     S = np.linspace(0.0, L, int(samples)) if grid == "S" else _grid_in_s(model, disc, x, p, int(samples))
     parts = [_pointwise(model, disc, x, p, S[c]) for c in _chunks(S.size)]
+    if model.wall is not None:
+        parts = [dict(q, **_contact_fields(model, disc, x, p, q["S"])) for q in parts]
     out = {key: np.concatenate([q[key] for q in parts]) for key in parts[0]}
     out["s"] = unstressed_arclength(model, disc, x, p, S)
-    return {key: out[key] for key in FIELD_NAMES}
+    return {key: out[key] for key in FIELD_NAMES if key in out}
+
+
+def _contact_fields(model, disc, x, p, S) -> dict:
+    """:data:`CONTACT_FIELDS` at the points ``S`` (:meth:`rodcont.rod.EulerianRod.contact`)."""
+    c = model.contact(disc, x, p, S=S)
+    level = model.wall.contact_level * model.contact_scale
+    return dict(axial_force=c["axial_force"], torque=c["torque"], pressure=c["pressure"], gap=c["gap"],
+                in_contact=(c["pressure"] >= level).astype(float))
 
 
 def _pointwise(model, disc, x, p, S) -> dict:

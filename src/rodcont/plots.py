@@ -42,7 +42,8 @@ def _cmap(name):
 PLOT_VARIABLES = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment")
 LABELS = {"phi_L": "end rotation  Φ = φ(L)  [rad]", "stretch": "stretch  (ℓ − L) / L", "torque": "torque  M·d3",
           "l0": "unstressed length ℓ0", "helical_waves": "helical waves", "min_alignment": "min d3·K3",
-          "gamma": "Γ = T / (w L)", "T": "tension T", "w": "weight w", "EI": "EI", "GJ": "GJ", "EA": "EA"}
+          "gamma": "Γ = T / (w L)", "T": "tension T", "w": "weight w", "EI": "EI", "GJ": "GJ", "EA": "EA",
+          "side_force": "side force  ∫ p dS", "min_gap": "min gap  min (c − |Δ|)", "contact_zones": "contact zones"}
 
 
 def _segments(x, y, unstable):

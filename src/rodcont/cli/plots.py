@@ -11,9 +11,11 @@ from .common import UserError, image_out, load_any_file, load_branch_file
 
 
 def _check_plot_variables(data, xvar, yvar) -> None:
-    """``--x``/``--y`` among the rod's variables, or, for files of a user's problem, their columns."""
+    """``--x``/``--y`` among the rod's variables (the contact columns where every file holds them), or, for
+    files of a user's problem, their columns."""
+    from ..branch import CONTACT_COLUMNS
     from ..plots import PLOT_VARIABLES
-    allowed = PLOT_VARIABLES + ("gamma", "T", "w", "EI", "GJ", "EA")
+    allowed = PLOT_VARIABLES + ("gamma", "T", "w", "EI", "GJ", "EA") + CONTACT_COLUMNS
     users = [b for d in data if d.attrs.get("kind") == "bvp" for b in d.branches]
     if users:
         common = set.intersection(*(set(b.table) for b in users)) - {"kind", "located"}
@@ -21,6 +23,11 @@ def _check_plot_variables(data, xvar, yvar) -> None:
     for name, v in (("--x", xvar), ("--y", yvar)):
         if v is not None and v not in allowed:
             raise UserError(f"{name} {v!r}: choose one of {', '.join(allowed)}")
+        if v in CONTACT_COLUMNS and not users:
+            for d in data:
+                if any(v not in b.branch for b in d.branches):
+                    raise UserError(f"{name} {v}: {d.path} holds no {v} (a branch traced in a conduit does: "
+                                    f"trace --conduit FILE)")
 
 
 @main_group.command()
@@ -33,9 +40,10 @@ def _check_plot_variables(data, xvar, yvar) -> None:
 @click.option("--title", default=None)
 @click.option("--overwrite", is_flag=True, help="replace -o if it exists")
 def plot(files, output, xvar, yvar, labels, log, title, overwrite):
-    """Response diagrams: any two of phi_L, stretch, torque, l0, helical_waves, min_alignment or a
-    continued parameter (torque against Phi is the distinguished diagram); one colour per file,
-    stable parts solid, unstable dashed, folds marked and labelled with the waves on each side."""
+    """Response diagrams: any two of phi_L, stretch, torque, l0, helical_waves, min_alignment, in a
+    conduit side_force, min_gap or contact_zones, or a continued parameter (torque against Phi is the
+    distinguished diagram); one colour per file, stable parts solid, unstable dashed, folds marked and
+    labelled with the waves on each side."""
     image_out(output, files, overwrite)
     if not output.lower().endswith(".png"):
         raise UserError(f"-o {output}: plots are written as PNG (name it .png)")
