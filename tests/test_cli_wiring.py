@@ -249,3 +249,52 @@ def test_export_without_a_conduit_has_no_contact_columns(tmp_path, capsys):
     assert code == 0, err
     header = [ln for ln in (tmp_path / "f.csv").read_text().splitlines() if not ln.startswith("#")][0].split(",")
     assert header[0] == "S" and not {"axial_force", "pressure", "gap", "in_contact"} & set(header)
+
+
+# --------------------------------------------------------------------------
+# Drilling on the command line (issue 23)
+# --------------------------------------------------------------------------
+EXAMPLES = __import__("os").path.join(__import__("os").path.dirname(__file__), "..", "examples")
+WELL, STRING = (__import__("os").path.join(EXAMPLES, f) for f in ("well_s3d.toml", "drill_string.toml"))
+
+
+def _values(out):
+    return {ln.split()[0]: ln.split()[1] for ln in out.splitlines() if ln and not ln.startswith("#")}
+
+
+def test_solve_a_drill_string_in_the_vertical_hole(capsys):
+    """300 m of the S-shaped well's vertical top: no contact, so the hook load is the buoyed weight of the
+    string (200 m of collars at 2189 N/m, 100 m of heavy-weight pipe at 624 N/m) for any friction, and
+    scales with the buoyancy factor 1 - rho_mud / rho_steel."""
+    loads = {}
+    for rho in ("1200", "1000"):
+        code, out, err = run(["solve", "--conduit", WELL, "--string", STRING, "--operation", "pick-up",
+                              "--friction", "0.3", "--depth", "300", "--mud-density", rho], capsys)
+        assert code == 0, err
+        v = _values(out)
+        assert v["operation"] == "pick-up" and float(v["depth"]) == 300.0 and int(v["contact_zones"]) == 0
+        loads[rho] = float(v["hook_load"])
+        assert "[drilling]" in out and "[rod]" not in out  # the problem as run: the string's, not the rod's
+    assert loads["1200"] == pytest.approx((1 - 1200 / 7850) * (200 * 2189 + 100 * 624), rel=2e-3)
+    # (1.7e-6 apart: the string stretches by its buoyed weight over EA, more in the lighter mud)
+    assert loads["1000"] / loads["1200"] == pytest.approx((1 - 1000 / 7850) / (1 - 1200 / 7850), rel=1e-5)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--gamma", "1", "--phi", "1", "--wob", "1000"], "--wob is an option of a drill string"),
+    (["--gamma", "1", "--phi", "1", "--operation", "drill"], "--operation is an option of a drill string"),
+    (["--gamma", "1", "--conduit", WELL, "--string", STRING], "--gamma is not an option of a drill string"),
+    (["--string", STRING], "--string needs the well"),
+    (["--conduit", WELL, "--string", STRING, "--friction", "-0.1"], "--friction must be"),
+])
+def test_drilling_options_go_with_a_string(args, message, capsys):
+    code, out, err = run(["solve", *args], capsys)
+    assert_one_line_error(code, out, err, message)
+
+
+def test_rodcont_cli_drilling_is_still_importable():
+    import rodcont.cli.drilling as moved
+    import rodcont.cli_drilling as old
+    from rodcont.loads import OPERATIONS
+    assert old.run_drilling_solve is moved.run_drilling_solve and "broomstick" in main_group.commands
+    assert moved.OPERATIONS == tuple(OPERATIONS)  # its copy of the names (no numpy at import)

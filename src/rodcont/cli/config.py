@@ -6,13 +6,14 @@ from __future__ import annotations
 import click
 
 from .common import explicit
+from .drilling import DRILLING_KEYS
 from .trace_options import OPTION_SOURCES
 
 
 # --config FILE.toml: sections and the options their keys set (any trace option goes in [trace])
 CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction", "reference"),
                    "loads": ("gamma", "T", "phi", "torque", "l0"),
-                   "mesh": ("N", "k", "N_max", "uniform")}
+                   "mesh": ("N", "k", "N_max", "uniform"), "drilling": DRILLING_KEYS}
 
 
 def load_config(ctx, param, value):
@@ -38,8 +39,8 @@ def load_config(ctx, param, value):
             raise click.BadParameter(f"{value}: '{section}' must be a section ([{section}])", param_hint="--config")
         allowed = CONFIG_SECTIONS.get(section)
         if allowed is None and section != "trace":
-            raise click.BadParameter(f"{value}: unknown section [{section}] (sections: rod, loads, mesh, trace)",
-                                     param_hint="--config")
+            raise click.BadParameter(f"{value}: unknown section [{section}] (sections: rod, loads, mesh, trace, "
+                                     f"drilling)", param_hint="--config")
         for key, v in table.items():
             name = key.replace("-", "_")
             if (allowed is not None and name not in allowed) or name not in names:
@@ -91,7 +92,7 @@ _CONFIG_SKIP = {"config", "quiet", "out", "out_dir", "overwrite", "start", "outp
 
 def config_toml(params: dict) -> str:
     """The effective problem as a TOML document (what ``--config`` reads back)."""
-    rows = {"rod": [], "loads": [], "mesh": [], "trace": []}
+    rows = {section: [] for section in CONFIG_SECTIONS} | {"trace": []}
     for name, v in params.items():
         if name in _CONFIG_SKIP or v is None or v == ():
             continue
@@ -121,6 +122,7 @@ def echo_config(ctx) -> None:
     params["T"] = ctx.meta.get("rodcont.T")
     params["weight_direction"] = ctx.meta.get("rodcont.weight_direction")
     params["reference"] = ctx.meta.get("rodcont.reference", "straight")
+    _drop_drilling_or_rod(params)
     start = params.get("start") or params.get("resume_file")
     if start is not None:
         # a restart's rod, loads, reference curve, conduit and mesh are the start file's, not the defaults;
@@ -143,3 +145,14 @@ def echo_config(ctx) -> None:
                    f"are those of {how} {start})")
     for line in text.splitlines():
         click.echo(f"#   {line}")
+
+
+def _drop_drilling_or_rod(params: dict) -> None:
+    """``solve`` without --string runs no drill string (its options are not echoed); with --string, the
+    string's files and operation are the problem, not the rod, its loads and its mesh."""
+    if "string" not in params:
+        return
+    drop = DRILLING_KEYS if params["string"] is None else (
+        CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error"))
+    for name in drop:
+        params.pop(name, None)

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import click
 
 from .app import main_group
 from .common import UserError, check_out, conduit_of, explicit, file_meta, make_rod, stretch_warning, tension_of
+from .drilling import DRILLING_KEYS, drilling_options, run_drilling_solve
 from .options import check_number, rod_options
 
 
 @main_group.command()
 @click.option("--gamma", type=float, default=None, callback=check_number("--gamma"),
-             help="tension ratio T / (w L) (or --T)")
+              help="tension ratio T / (w L) (or --T)")
 @click.option("--phi", "phi", type=float, default=None, callback=check_number("--phi"),
               help="end rotation Phi [rad] (or --torque)")
 @click.option("--torque", type=float, default=None, callback=check_number("--torque"),
@@ -21,7 +23,7 @@ from .options import check_number, rod_options
 @click.option("--l0", "l0", type=float, default=None, callback=check_number("--l0", positive=True),
               help="unstressed length instead of --gamma/--T: the tension becomes an unknown (printed as T)")
 @click.option("--load-step", type=float, default=0.5, show_default=True,
-             callback=check_number("--load-step", positive=True),
+              callback=check_number("--load-step", positive=True),
               help="Phi increment of the natural continuation from 0 (under --torque: GJ/L times it)")
 @click.option("--conduit", type=click.Path(dir_okay=False), default=None,
               help="TOML file of a conduit around the reference curve ([conduit] clearance, reference, eps): "
@@ -34,9 +36,9 @@ from .options import check_number, rod_options
 @click.option("--out", default=None, type=click.Path(dir_okay=False),
               help="write the equilibrium as a one-point branch file (export, shape, trace --start read it)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
+@drilling_options
 @rod_options
-def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ, EA,
-          L):
+def solve(**given):
     """One equilibrium at (Gamma, Phi), reached by loading Phi (or the end torque) up from 0.
 
     The mesh starts from the problem's lengths (or --N) and is refined until the
@@ -46,7 +48,36 @@ def solve(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max,
     phi_L, torque, l0) and responses (stretch, helical_waves, min_alignment, in a
     conduit min_gap, side_force and the contact zones), Newton's iterations and
     residual norm, the mesh N, the error estimates (what to trust).
+
+    With --string S.toml a drill string in the well file --conduit WELL.toml: its
+    bit at --depth, under --operation, --friction, ... (torque and drag); prints
+    hook_load, surface_torque, side_force, the contact zones, error and N.
     """
+    a = SimpleNamespace(**given)
+    if a.string is not None:
+        return _solve_string(a)
+    said = explicit(*DRILLING_KEYS)
+    if said:
+        raise UserError(f"--{said[0].replace('_', '-')} is an option of a drill string: give --string S.toml "
+                        f"(and the well as --conduit WELL.toml)")
+    _solve_rod(a.gamma, a.phi, a.torque, a.l0, a.load_step, a.conduit, a.max_error, a.uniform, a.N_max, a.out,
+               a.overwrite, a.N, a.k, a.w, a.EI, a.GJ, a.EA, a.L)
+
+
+def _solve_string(a) -> None:
+    """``solve --string S.toml --conduit WELL.toml``: torque and drag (:func:`.drilling.run_drilling_solve`)."""
+    for name in ("gamma", "phi", "torque", "l0", "out"):
+        if getattr(a, name) is not None:
+            raise UserError(f"--{name} is not an option of a drill string (--string): its loads are the string's "
+                            f"weight, the operation, --wob and --bit-torque; drop --{name}")
+    if click.get_current_context().meta.get("rodcont.T") is not None:
+        raise UserError("--T is not an option of a drill string (--string): drop it")
+    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS})
+
+
+def _solve_rod(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ,
+               EA, L):
+    """One equilibrium of the rod (``solve`` without --string)."""
     from ..drivers.solve import ConvergenceError, solve_equilibrium, write_equilibrium
     rod = make_rod(w, EI, GJ, EA, L)
     T = click.get_current_context().meta.get("rodcont.T")

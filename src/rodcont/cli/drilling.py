@@ -1,0 +1,144 @@
+"""The command line of torque and drag (issue 23): ``solve --string`` and ``rodcont broomstick``.
+
+* :func:`drilling_options`: the options ``solve`` (and ``trace``) take for a drill string in a well:
+  ``--operation``, ``--trip-speed``, ``--rpm``, ``--friction``, ``--string``, ``--mud-density``, ``--wob``,
+  ``--bit-torque``, ``--depth``. With ``--string`` the command solves the string with its bit at ``--depth``
+  in the well file given as ``--conduit`` (a ``[well]`` file, ``examples/well_s3d.toml``): call
+  :func:`run_drilling_solve` with the parsed values; it prints ``name value`` lines (``hook_load``,
+  ``surface_torque``, ...).
+* :func:`broomstick_command`: ``rodcont broomstick WELL.toml --string S.toml --friction 0.15 0.25 0.35
+  --depth A B -o broom.png --out B.h5``.
+* :func:`register`: adds the commands to the CLI's group (``register(main_group)``).
+
+User errors are ``click.UsageError`` (the CLI's ``main`` prints one line ``rodcont: error: ...``, exit 2).
+"""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+
+# rodcont.loads.OPERATIONS' names (not imported: it loads numpy, and rodcont --version does not)
+OPERATIONS = ("pick-up", "slack-off", "rotate", "drill", "static")
+DRILLING_KEYS = ("operation", "trip_speed", "rpm", "friction", "string", "mud_density", "wob", "bit_torque", "depth")
+
+
+def drilling_options(f):
+    """The drill-string options of ``solve`` / ``trace`` (values under :data:`DRILLING_KEYS`)."""
+    opts = [
+        click.option("--operation", type=click.Choice(list(OPERATIONS)), default=None,
+                     help="rig operation: pick-up (tripping out), slack-off (tripping in), rotate (off bottom), "
+                          "drill (on bottom, with --wob and --bit-torque), static"),
+        click.option("--trip-speed", type=float, default=None, help="axial speed V, m/s (> 0 out of the hole)"),
+        click.option("--rpm", type=float, default=None, help="rotation rate, rev/min (with --trip-speed: combined)"),
+        click.option("--friction", type=float, default=None, help="friction factor mu (default: the well file's)"),
+        click.option("--string", "string", type=click.Path(dir_okay=False), default=None,
+                     help="drill string file (TOML: sections from the bit up)"),
+        click.option("--mud-density", type=float, default=None, help="mud density, kg/m^3 (buoyancy)"),
+        click.option("--wob", type=float, default=0.0, show_default=True, help="weight on bit, N (drill)"),
+        click.option("--bit-torque", type=float, default=0.0, show_default=True, help="bit torque, N m (drill)"),
+        click.option("--depth", type=float, default=None, help="bit measured depth, m (default: the survey's end)"),
+    ]
+    for opt in reversed(opts):
+        f = opt(f)
+    return f
+
+
+def _load(well_path: str, string_path: str, mud_density):
+    from ..drilling import DrillingError, DrillString, Well
+    try:
+        return Well.from_toml(well_path), DrillString.from_toml(string_path, mud_density)
+    except DrillingError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
+def _check(name: str, v, positive=False, nonnegative=False):
+    import math
+    if v is None:
+        return None
+    if not math.isfinite(v) or (positive and not v > 0) or (nonnegative and not v >= 0):
+        raise click.UsageError(f"--{name} must be a {'positive' if positive else 'non-negative'} finite number, "
+                               f"got {v!r}")
+    return v
+
+
+def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo):
+    """Solve the string of ``values["string"]`` in the well file ``conduit`` (``solve --conduit WELL.toml
+    --string S.toml ...``) and print ``name value`` lines: ``depth``, ``operation``, ``friction``,
+    ``hook_load`` (N), ``surface_torque`` (N m), ``side_force`` (N), ``contact_zones``, ``error``, ``N``.
+    Returns the :class:`rodcont.drilling.TorqueDrag`."""
+    from ..drilling import DrillingError, torque_and_drag
+    from ..drivers.solve import ConvergenceError
+    if conduit is None:
+        raise click.UsageError("--string needs the well: --conduit WELL.toml (a [well] file)")
+    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
+    op = values.get("operation") or ("drill" if values.get("wob") or values.get("bit_torque") else "static")
+    depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
+    try:
+        r = torque_and_drag(well, string, depth, op, mu=_check("friction", values.get("friction"), nonnegative=True),
+                            wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
+                            bit_torque=values.get("bit_torque") or 0.0,
+                            trip_speed=values.get("trip_speed"), rpm=values.get("rpm"))
+    except (DrillingError, ValueError) as exc:
+        raise click.UsageError(str(exc)) from None
+    except ConvergenceError as exc:
+        raise click.ClickException(str(exc)) from None
+    for name, v in (("depth", r.depth), ("operation", r.operation.name), ("friction", r.mu),
+                    ("hook_load", r.hook_load), ("surface_torque", r.surface_torque), ("side_force", r.side_force),
+                    ("contact_zones", len(r.zones)), ("error", r.error), ("N", r.N)):
+        echo(f"{name} {v!r}" if isinstance(v, float) else f"{name} {v}")
+    return r
+
+
+@click.command("broomstick")
+@click.argument("well", type=click.Path(dir_okay=False))
+@click.argument("more_friction", nargs=-1, type=float, metavar="")
+@click.option("--string", "string", type=click.Path(dir_okay=False), required=True, help="drill string file (TOML)")
+@click.option("--friction", type=float, multiple=True, required=True,
+              help="friction factors, one curve each (--friction 0.15 --friction 0.25, or --friction 0.15 0.25 0.35)")
+@click.option("--depth", nargs=2, type=float, required=True, help="bit depths from A to B, m")
+@click.option("--points", type=int, default=11, show_default=True, help="depths between A and B")
+@click.option("--mud-density", type=float, default=None, help="mud density, kg/m^3 (default: the string file's)")
+@click.option("-o", "--output", "png", type=click.Path(dir_okay=False), default="broom.png", show_default=True)
+@click.option("--out", "h5", type=click.Path(dir_okay=False), default=None, help="HDF5 file of every point")
+@click.option("--jobs", type=int, default=None, help="parallel jobs (default: the cores)")
+@click.option("--overwrite", is_flag=True, help="replace existing outputs")
+def broomstick_command(well, more_friction, string, friction, depth, points, mud_density, png, h5, jobs, overwrite):
+    """Hook load against bit depth for pick-up, slack-off and rotating off bottom, one curve per friction
+    factor, the soft-string estimate beside each, and the surface torque against depth."""
+    import numpy as np
+
+    from ..drivers.broomstick import broomstick, plot_broomstick, write_broomstick
+    # click's options take one value each: the further numbers of --friction 0.15 0.25 0.35 arrive as arguments
+    friction = [_check("friction", f, nonnegative=True) for f in tuple(friction) + tuple(more_friction)]
+    a, b = depth
+    if not (a > 0 and b > a) or points < 2:
+        raise click.UsageError(f"--depth A B needs 0 < A < B and --points at least 2, got {a:g} {b:g}, {points}")
+    for path in (png, h5):
+        if path is not None and os.path.lexists(path) and not overwrite:
+            raise click.UsageError(f"{path} exists: choose another name or add --overwrite to replace it")
+        if path is not None and os.path.realpath(path) in {os.path.realpath(well), os.path.realpath(string)}:
+            raise click.UsageError(f"{path} is an input: choose another output")
+    w, s = _load(well, string, _check("mud-density", mud_density, positive=True))
+    if b > w.total_depth * (1 + 1e-12):
+        raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")
+    br = broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs)
+    for op, mu, d, why in br.failures:
+        click.echo(f"rodcont: warning: {op}, mu {mu:g}, depth {d:g}: {why}", err=True)
+    plot_broomstick(br, png)
+    if h5 is not None:
+        write_broomstick(br, h5, dict(well=os.path.abspath(well), string=os.path.abspath(string)))
+    i = -1  # the deepest point of each curve, as name value lines
+    for k, op in enumerate(br.operations):
+        for j, mu in enumerate(br.mus):
+            click.echo(f"hook_load {op} {mu:g} {float(br.hook_load[i, k, j])!r}")
+    for j, mu in enumerate(br.mus):
+        click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
+    click.echo(f"plot {png}")
+
+
+def register(group) -> None:
+    """Add the torque-and-drag commands to the CLI's click group."""
+    group.add_command(broomstick_command)
