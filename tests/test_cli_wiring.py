@@ -298,3 +298,32 @@ def test_rodcont_cli_drilling_is_still_importable():
     from rodcont.loads import OPERATIONS
     assert old.run_drilling_solve is moved.run_drilling_solve and "broomstick" in main_group.commands
     assert moved.OPERATIONS == tuple(OPERATIONS)  # its copy of the names (no numpy at import)
+
+
+# --------------------------------------------------------------------------
+# sweep on a Dask scheduler (issue 22 item 19)
+# --------------------------------------------------------------------------
+def test_sweep_runs_on_a_dask_scheduler(tmp_path, capsys):
+    """The same family on a running scheduler (a LocalCluster of threads started here) as on the sweep's own
+    processes: the same first folds, to the digits printed."""
+    distributed = pytest.importorskip("dask.distributed")
+    tables = {}
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as c:
+        for how, extra in (("dask", ["--scheduler", c.scheduler_address]), ("pool", ["--jobs", "2"])):
+            code, out, err = run(["sweep", "--gamma", "0.5", "1", "--stretch-max", "0.2", *extra, "--out",
+                                  tmp_path / how, "--quiet"], capsys)
+            assert code == 0, err
+            tables[how] = [ln for ln in out.splitlines() if ln.strip().split(" ")[0] in ("0.5", "1")]
+            assert sorted(p.name for p in (tmp_path / how).iterdir()) == ["gamma_0.5.h5", "gamma_1.h5",
+                                                                          "response_diagram.png"]
+            where = f"(on the Dask scheduler {c.scheduler_address})" if how == "dask" else "(2 processes)"
+            assert where in out
+    assert len(tables["dask"]) == 2 and tables["dask"] == tables["pool"]
+    assert " 13.0999938" in tables["dask"][1]  # Gamma = 1's first fold (the README's, the Lagrangian reference's)
+
+
+def test_sweep_scheduler_errors_are_one_line(tmp_path, capsys):
+    code, out, err = run(["sweep", "--gamma", "1", "--scheduler", "tcp://127.0.0.1:1", "--jobs", "2", "--out",
+                          tmp_path / "s"], capsys)
+    assert_one_line_error(code, out, err, "not both")
+    assert not (tmp_path / "s").exists()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -14,6 +15,8 @@ from .common import UserError, input_files, make_rod, reference_curve, stretch_w
 from .options import GreedyFloats, check_number, rod_options
 from .trace_options import trace_kwargs, trace_options
 
+SCHEDULER_TIMEOUT = "10s"  # to connect to --scheduler: a wrong address is an error, not a wait
+
 
 @main_group.command()
 @click.option("--gamma", "gammas", cls=GreedyFloats, type=float, required=True, callback=check_number("--gamma"),
@@ -21,6 +24,9 @@ from .trace_options import trace_kwargs, trace_options
 @trace_options
 @click.option("--diagram", "whole", is_flag=True, help="the whole diagram per Gamma, not only the primary branch")
 @click.option("--jobs", type=click.IntRange(1, 1024), default=None, help="parallel processes [default: all cores]")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="run on the running Dask scheduler at ADDRESS (tcp://HOST:8786; its workers must see --out) "
+                   "instead of a process pool")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="directory for the files")
 @click.option("--overwrite", is_flag=True, help="replace files that exist in the directory")
 @click.option("--quiet", is_flag=True)
@@ -37,17 +43,22 @@ def sweep(**given):
     if curve is not None:
         kw["curve"] = curve.spec
     _check_gammas(a.gammas, rod, kw)
+    if a.scheduler is not None and a.jobs is not None:
+        raise UserError("give --jobs (a process pool here) or --scheduler (a Dask cluster's workers), not both")
     made = _make_out_dir(a.out_dir, a.gammas, a.whole)
     t0 = time.perf_counter()
     try:
-        res = run_sweep(list(a.gammas), a.out_dir, rod=rod, N=a.N, k=a.k, jobs=a.jobs, progress=not a.quiet,
-                        diagram=a.whole, overwrite=a.overwrite, **kw)
-    except (ValueError, TypeError, OSError) as exc:
+        with _executor(a.scheduler) as executor:
+            res = run_sweep(list(a.gammas), a.out_dir, rod=rod, N=a.N, k=a.k, jobs=a.jobs, executor=executor,
+                            progress=not a.quiet, diagram=a.whole, overwrite=a.overwrite, **kw)
+    except (ValueError, TypeError, OSError, UserError) as exc:
         if made and not os.listdir(a.out_dir):
             os.rmdir(a.out_dir)
+        if isinstance(exc, UserError):
+            raise
         msg = f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise UserError(msg) from None
-    _print_sweep(res, time.perf_counter() - t0)
+    _print_sweep(res, time.perf_counter() - t0, a.scheduler)
     failed = [r for r in res["branches"] if r["error"]]
     if failed:
         if made and not os.listdir(a.out_dir):
@@ -104,10 +115,29 @@ def _make_out_dir(out_dir, gammas, whole) -> bool:
     return made
 
 
-def _print_sweep(res, elapsed) -> None:
+@contextlib.contextmanager
+def _executor(address):
+    """None (the sweep's own process pool), or the executor of a Dask client of the scheduler at ``address``."""
+    if address is None:
+        yield None
+        return
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise UserError("--scheduler needs dask.distributed: pip install 'rodcont[dask]'") from None
+    try:
+        client = Client(address, timeout=SCHEDULER_TIMEOUT)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise UserError(f"cannot reach the Dask scheduler at {address}: {' '.join(str(exc).split())}") from None
+    with client:
+        yield client.get_executor()
+
+
+def _print_sweep(res, elapsed, scheduler=None) -> None:
     click.echo(f"{'gamma':>8} {'branches':>8} {'points':>7} {'folds':>6} {'first fold phi_L':>18}  stop reason")
     for r in res["branches"]:
         ff = f"{r['first_fold']:18.10f}" if r["first_fold"] is not None else f"{'-':>18}"
         click.echo(f"{r['gamma']:8g} {r['branches']:8d} {r['points']:7d} {r['folds']:6d} {ff}  {r['stop_reason']}")
     click.echo(f"diagram      {res['diagram']}")
-    click.echo(f"time         {elapsed:.2f} s ({res['jobs']} processes)")
+    where = f"on the Dask scheduler {scheduler}" if scheduler else f"{res['jobs']} processes"
+    click.echo(f"time         {elapsed:.2f} s ({where})")
