@@ -327,3 +327,25 @@ def test_sweep_scheduler_errors_are_one_line(tmp_path, capsys):
                           tmp_path / "s"], capsys)
     assert_one_line_error(code, out, err, "not both")
     assert not (tmp_path / "s").exists()
+
+
+# --------------------------------------------------------------------------
+# diagram --jobs (issue 24)
+# --------------------------------------------------------------------------
+def test_diagram_on_two_processes_finds_the_serial_folds(tmp_path, capsys):
+    import os
+    tables, cpu = {}, {}
+    for jobs in ("1", "2"):
+        before = os.times()
+        code, out, err = run(["diagram", "--gamma", "1", "--phi-max", "22", "--jobs", jobs, "--out",
+                              tmp_path / f"d{jobs}.h5", "--quiet"], capsys)
+        after = os.times()
+        assert code == 0, err
+        lines = [ln for ln in out.splitlines() if not ln.startswith("#")]
+        tables[jobs] = lines[lines.index(next(ln for ln in lines if ln.startswith("branch "))):]
+        cpu[jobs] = float(next(ln for ln in lines if ln.startswith("cpu_time")).split()[1])
+        workers = after.children_user + after.children_system - before.children_user - before.children_system
+        if jobs == "2":  # the workers' CPU time is counted: they traced the branches
+            assert workers > 0 and cpu[jobs] >= workers - 0.02
+    assert len(tables["1"]) == 3 and tables["1"] == tables["2"]  # the header and the folds at 13.1 and 21.02
+    assert tables["1"][1].split()[:2] == ["0", "13.099993823047"]

@@ -142,10 +142,11 @@ def cli(argv, cwd) -> tuple[int, str, str]:
 
 def shown_output(printed: str) -> list[str]:
     """What the README shows of a command's output: without the problem's TOML comment lines, each branch's
-    time and ends (indented lines below a branch) and the total time, as the worked example says."""
+    time and ends (indented lines below a branch) and the total (wall-clock and CPU) times, as the worked
+    example says."""
     out = []
     for line in printed.splitlines():
-        if line.startswith("#") or re.match(r" {7,}\S", line) or re.match(r"time\s+[\d.]+ s$", line):
+        if line.startswith("#") or re.match(r" {7,}\S", line) or re.match(r"(cpu_)?time\s+[\d.]+ s$", line):
             continue
         out.append(re.sub(r"(?<=folds)\s+[\d.]+ s(?=\s)", "", line))
     return out

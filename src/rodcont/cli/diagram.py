@@ -63,6 +63,8 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @click.option("--out", default=None, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
 @click.option("--resume", "resume_file", default=None, type=click.Path(dir_okay=False),
               help="finish the interrupted diagram in FILE.h5 (its complete branches kept), into FILE.h5 itself")
+@click.option("--jobs", type=click.IntRange(1, 1024), default=1, show_default=True,
+              help="branches traced at once on a pool of this many processes (the same branches as 1)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
@@ -72,21 +74,25 @@ def diagram(**given):
     The primary branch from Phi = 0, one seed per interval between
     consecutive critical twists (traced both ways), --deflate for more;
     a branch reached twice is kept once. Prints one line per branch and the
-    fold table with the waves on each side (+1 wave marks a fold that adds one).
+    fold table with the waves on each side (+1 wave marks a fold that adds one),
+    the wall-clock time and the CPU time (its own and its workers').
     """
     a = SimpleNamespace(**given)
     kw = trace_kwargs(a)
     rod = make_rod(a.w, a.EI, a.GJ, a.EA, a.L)
     reference_curve(rod, "diagram")
     if a.resume_file is not None:
+        if a.jobs > 1:
+            raise UserError("--resume finishes a diagram's branches one after the other: drop --jobs")
         run, out = _resume_diagram(a.resume_file, a.out, kw, a.deflate_at, a.N, a.k), a.resume_file
     else:
         run, out = _new_diagram(a, rod, kw), a.out
-    dg, elapsed = _run_diagram(run, out, a.quiet)
+    dg, elapsed, cpu = _run_diagram(run, out, a.quiet)
     click.echo(f"critical twists  {', '.join(f'{c:.8f}' for c in dg.critical)}")
     click.echo(f"branches         {len(dg.branches)}")
     diagram_branches(dg)
     click.echo(f"time             {elapsed:.2f} s")
+    click.echo(f"cpu_time         {cpu:.2f} s")
     diagram_folds(dg.folds)
 
 
@@ -105,15 +111,23 @@ def _new_diagram(a, rod, kw):
 
     def run(**more):
         return run_diagram(None, rod, N=a.N, k=a.k, T=T, l0=a.l0, out=a.out, overwrite=a.overwrite,
-                           deflate_at=a.deflate_at, meta=file_meta(), **more, **kw)
+                           deflate_at=a.deflate_at, meta=file_meta(), jobs=a.jobs, **more, **kw)
     return run
 
 
+def _cpu_seconds() -> float:
+    """CPU time (user + system) of this process and of its children that have ended (a pool's workers, once
+    it is shut down)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
 def _run_diagram(run, out, quiet):
-    """``run`` with Ctrl-C between points (the diagram file keeps its complete branches); ``(diagram, seconds)``."""
+    """``run`` with Ctrl-C between points (the diagram file keeps its complete branches); ``(diagram, wall-clock
+    seconds, CPU seconds)``."""
     with Interrupts() as intr:
         progress = Progress(True, intr)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _cpu_seconds()
         interrupted = False
         try:
             dg = run(callback=progress, progress=None if quiet else (lambda m: click.echo(m, err=True)))
@@ -126,7 +140,7 @@ def _run_diagram(run, out, quiet):
             click.echo(f"interrupted: {out} holds the branches completed so far; finish it with "
                        f"rodcont diagram --resume {out}", err=True)
         sys.exit(intr.exit_code)
-    return dg, time.perf_counter() - t0
+    return dg, time.perf_counter() - t0, _cpu_seconds() - c0
 
 
 def _resume_diagram(path, out, kw, deflate_at, N, k):
