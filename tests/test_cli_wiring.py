@@ -4,8 +4,8 @@ the library gives reaching the user, columns of plot and export, drilling, Dask 
 from dataclasses import fields
 
 import pytest
-from conftest import run
 
+from conftest import run
 from rodcont.cli import main_group
 from rodcont.settings import TraceOptions
 
@@ -75,7 +75,7 @@ def test_the_library_s_warnings_are_said_and_numpy_s_noise_is_not(capsys):
     def warns():
         with np.errstate(over="warn"):
             np.float64(1e308) * np.float64(10.0)  # numpy: "overflow encountered in scalar multiply"
-        warnings.warn("the library's own\n   warning", RuntimeWarning)
+        warnings.warn("the library's own\n   warning", RuntimeWarning, stacklevel=1)
         click.echo("done")
 
     try:

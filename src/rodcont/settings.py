@@ -8,8 +8,8 @@ is written here and nowhere else. No numpy at import: ``rodcont --version`` and 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, fields
-from typing import Callable, Sequence
 
 __all__ = ["Bound", "TraceOptions", "knob", "trace_relations"]
 

@@ -9,7 +9,6 @@ import os
 
 import click
 
-
 EXIT_USAGE = 2
 
 
@@ -151,6 +150,7 @@ def show_warning(message, category, filename, lineno, file=None, line=None) -> N
 def _read(loader, *args):
     """A branch or diagram file read by ``loader``; a file without rodcont's checksum is read and said so."""
     import warnings
+
     from ..branchfile import BranchFileError, UnverifiedFileWarning
     try:
         with warnings.catch_warnings(record=True) as said:

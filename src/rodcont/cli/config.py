@@ -9,7 +9,6 @@ from .common import explicit
 from .drilling import DRILLING_KEYS
 from .trace_options import OPTION_SOURCES
 
-
 # --config FILE.toml: sections and the options their keys set (any trace option goes in [trace])
 CONFIG_SECTIONS = {"rod": ("EI", "GJ", "EA", "w", "L", "weight_direction", "reference"),
                    "loads": ("gamma", "T", "phi", "torque", "l0"),
@@ -21,6 +20,7 @@ def load_config(ctx, param, value):
     if value is None:
         return None
     import tomllib
+
     from ..safeio import InputFileError, read_input
     try:  # a regular file of a problem file's size: never a device, a FIFO or a huge file
         text = read_input(value, "toml", what="problem file")

@@ -11,12 +11,23 @@ from types import SimpleNamespace
 import click
 
 from .app import main_group
-from .common import (UserError, check_out, explicit, file_meta, load_any_file, load_branch_file, make_rod,
-                     reference_curve, stretch_warning, tension_of, worded)
+from .common import (
+    UserError,
+    check_out,
+    explicit,
+    file_meta,
+    load_any_file,
+    load_branch_file,
+    make_rod,
+    reference_curve,
+    stretch_warning,
+    tension_of,
+    worded,
+)
 from .options import check_number, rod_options
-from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
 from .tables import diagram_branches, diagram_folds, diagram_unfinished, fold_table, user_folds
+from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 
 
 @main_group.command()
@@ -147,6 +158,7 @@ def _resume_diagram(path, out, kw, deflate_at, N, k):
     """``diagram --resume FILE.h5``: the runner that finishes it in place (rodcont.restart.resume_diagram);
     options given must be the file's."""
     import numpy as np
+
     from ..branchfile import same_file
     from ..restart import resume_diagram
     if out is not None and not same_file(out, path):

@@ -19,7 +19,6 @@ import os
 
 import click
 
-
 # rodcont.loads.OPERATIONS' names (not imported: it loads numpy, and rodcont --version does not)
 OPERATIONS = ("pick-up", "slack-off", "rotate", "drill", "static")
 DRILLING_KEYS = ("operation", "trip_speed", "rpm", "friction", "string", "mud_density", "wob", "bit_torque", "depth")

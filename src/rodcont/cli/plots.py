@@ -75,6 +75,7 @@ def plot(files, output, xvar, yvar, labels, log, title, overwrite):
 def shape(file, points, branch, output, overwrite):
     """3D centreline of stored points of a branch file."""
     import numpy as np
+
     from ..plots import shape_figure
     from ..rod import EulerianRod
     image_out(output, [file], overwrite)
@@ -109,6 +110,7 @@ def _centrelines(file, data, model, points, magnify):
     """``(curves, contacts)``: the centreline of each stored point (its deflection from the axis times
     ``magnify`` in a conduit) with its label, and the parts of it in contact with the wall."""
     import numpy as np
+
     from ..branchfile import BranchFileError
     wall = data.wall
     S = np.linspace(*model.interval, 400)

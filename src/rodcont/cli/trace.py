@@ -10,12 +10,26 @@ from types import SimpleNamespace
 import click
 
 from .app import main_group
-from .common import (UserError, check_out, conduit_of, explicit, file_identity, file_meta, load_any_file,
-                     load_branch_file, make_rod, point_spec, reference_curve, stretch_warning, tension_of, worded)
+from .common import (
+    UserError,
+    check_out,
+    conduit_of,
+    explicit,
+    file_identity,
+    file_meta,
+    load_any_file,
+    load_branch_file,
+    make_rod,
+    point_spec,
+    reference_curve,
+    stretch_warning,
+    tension_of,
+    worded,
+)
 from .options import check_number, rod_options
-from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 from .progress import Interrupts, Progress
 from .tables import fold_table, fold_warnings
+from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
 
 
 @main_group.command()
