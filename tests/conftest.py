@@ -22,6 +22,7 @@ def assert_picture(path):
 def run(args, capsys):
     """Run the CLI in-process; returns (exit status, stdout, stderr)."""
     import pytest
+
     from rodcont.cli import main
     with pytest.raises(SystemExit) as exc:
         main([str(a) for a in args])

@@ -9,9 +9,9 @@ import time
 import h5py
 import numpy as np
 import pytest
-from conftest import assert_picture, run
 
 import rodcont
+from conftest import assert_picture, run
 from rodcont.cli import main
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -180,8 +180,8 @@ def test_interrupted_trace_leaves_a_valid_file_and_restarts(tmp_path):
     assert data.attrs["stop_reason"] == "interrupted"
     assert len(data) >= n
     # every stored point is a solution
-    from rodcont.system import RodSystem
     from rodcont.linalg import LU, bordered
+    from rodcont.system import RodSystem
     for i in range(len(data)):
         # on its own mesh (the trace adapts it: N may have grown from 40), a Newton step of the
         # continuation (bordered by the stored tangent: regular at folds too) moves the stored point by
@@ -398,6 +398,7 @@ def test_a_fold_detected_but_not_located_is_said_in_the_summary_and_the_file(tmp
     """A fold whose location fails (no point of the bracket converges) is not dropped silently: the summary
     warns with its bracket and the branch file keeps it in the ``unlocated`` attribute."""
     import json
+
     from rodcont.continuation import Tracker
     monkeypatch.setattr(Tracker, "locate", lambda self, *a, **k: None)
     out = tmp_path / "b.h5"

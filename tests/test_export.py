@@ -11,9 +11,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from conftest import run
 
-from rodcont.branchfile import BranchWriter, FOLD_FIELDS, SCALARS, load_branch, load_diagram
+from conftest import run
+from rodcont.branchfile import FOLD_FIELDS, SCALARS, BranchWriter, load_branch, load_diagram
 from rodcont.cli import main_group
 from rodcont.cli.export import animate_cmd, export_cmd
 from rodcont.export import ExportError, rod_fields, write_npz

@@ -6,13 +6,13 @@ from concurrent.futures import ThreadPoolExecutor
 import h5py
 import numpy as np
 import pytest
-from conftest import assert_picture
 
 import rodcont
-from rodcont.drivers.foldcurve import fold_curve
-from rodcont.drivers.trace import trace
+from conftest import assert_picture
 from rodcont.cli import main
+from rodcont.drivers.foldcurve import fold_curve
 from rodcont.drivers.sweep import sweep
+from rodcont.drivers.trace import trace
 
 
 @pytest.fixture(scope="module")

@@ -27,9 +27,9 @@ import warnings
 import h5py
 import numpy as np
 import pytest
-from conftest import run
 
 import rodcont
+from conftest import run
 from rodcont.branchfile import UnverifiedFileWarning
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

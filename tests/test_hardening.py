@@ -22,9 +22,9 @@ import time
 import h5py
 import numpy as np
 import pytest
-from conftest import run
 
 import rodcont
+from conftest import run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ENV = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "src"), OPENBLAS_NUM_THREADS="1")
@@ -542,6 +542,7 @@ def test_import_leaves_the_caller_alone():
 
 def test_one_failing_gamma_does_not_stop_a_sweep(tmp_path):
     from concurrent.futures import ThreadPoolExecutor
+
     from rodcont.drivers.sweep import sweep
     with ThreadPoolExecutor(2) as ex:
         res = sweep([1.0, 1e6], str(tmp_path), executor=ex, stretch_max=0.01, plot=False)

@@ -70,7 +70,7 @@ def test_folds_are_marked_and_labelled_where_the_lagrangian_reference_has_them(d
     assert len(marks) == len(FOLDS_1) == 4
     for (x, y), (xr, yr) in zip(marks, FOLDS_1):
         assert y == pytest.approx(yr, abs=1e-8) and x == pytest.approx(xr, rel=1e-7)
-    labels = sorted(((t.xy[1], t.get_text()) for t in ax.texts))
+    labels = sorted((t.xy[1], t.get_text()) for t in ax.texts)
     assert [t for _, t in labels] == ["0→1", "1→2", "2→3", "3→4"]
     for (y, _), (_, yr) in zip(labels, FOLDS_1):
         assert y == pytest.approx(yr, abs=1e-8)

@@ -404,6 +404,7 @@ def test_bvp_table_counts_and_rodcont_errors():
     re-run (its fold located; its errors, at rounding level, to a factor 10); the timings are the script's."""
     sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
     import bvp_compare
+
     import bvp_reference as ref
     names = {"rodcont (`continue_bvp`)": "rodcont", "scipy `solve_bvp`, natural continuation": "scipy",
              "plain Newton tracker (finite differences, natural continuation)": "newton"}

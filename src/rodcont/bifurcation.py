@@ -71,7 +71,7 @@ class FoldProblem:
     def k(self) -> int:
         return self.pb.k
 
-    def with_mesh(self, breakpoints, k: int | None = None) -> "FoldProblem":
+    def with_mesh(self, breakpoints, k: int | None = None) -> FoldProblem:
         """The same fold problem on another mesh: the right null vector carried over; the left one is
         made again at the first point evaluated there (the start of the next segment)."""
         new = FoldProblem.__new__(FoldProblem)
@@ -80,7 +80,7 @@ class FoldProblem:
         new.n, new.c, new.b = c.size, c / np.linalg.norm(c), None
         return new
 
-    def transfer(self, X, source: "FoldProblem") -> np.ndarray:
+    def transfer(self, X, source: FoldProblem) -> np.ndarray:
         """``X = (x, p1)`` (or a tangent of it) of ``source`` on this mesh: ``x`` carried over, ``p1`` kept."""
         X = np.asarray(X, float)
         return np.append(self.pb.transfer(X[:-1], source.pb), X[-1])

@@ -17,8 +17,17 @@ import math
 import numpy as np
 
 from .continuation import Kind, Point
-from .result import ContinuationResult, PointNotFound, Status, Table, _Rows, event_label, special_points
-from .result import SpecialPoint, status_from_message
+from .result import (
+    ContinuationResult,
+    PointNotFound,
+    SpecialPoint,
+    Status,
+    Table,
+    _Rows,
+    event_label,
+    special_points,
+    status_from_message,
+)
 from .rod import RodParameters
 
 OUTPUTS = ("phi_L", "stretch", "torque", "l0", "helical_waves", "min_alignment", "defect")
@@ -247,7 +256,7 @@ class Branch(ContinuationResult):
     # ---- read from a file -----------------------------------------------------------------------
     @classmethod
     def from_file(cls, path: str, attrs: dict, raw: dict, folds: dict, branch_points: dict, special: dict | None,
-                  mesh: np.ndarray, group_attrs: dict | None = None, name: str = "") -> "Branch":
+                  mesh: np.ndarray, group_attrs: dict | None = None, name: str = "") -> Branch:
         """A branch read back (``rodcont.branchfile``): the columns, solutions and tables as stored."""
         a = attrs
         rod = RodParameters(EI=a["EI"], GJ=a["GJ"], EA=a["EA"], w=a["w"], L=a["L"],

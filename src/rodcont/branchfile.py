@@ -101,9 +101,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import __version__
-from .result import Table
-
 from .branch import FOLD_FIELDS, Branch
+from .result import Table
 
 SCALARS = ("phi_L", "stretch", "torque", "l0", "min_alignment", "arclength", "defect", "error", "dphi_ds")
 #: the loaded-branch type (a Branch read from a file is a Branch)

@@ -27,7 +27,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gauss_legendre(k: int) -> tuple[np.ndarray, np.ndarray]:
     """``numpy.polynomial.legendre.leggauss(k)``, computed once per ``k`` (an eigenproblem: a tenth of a
     millisecond, and every discretisation and error estimate asks again); read-only arrays."""

@@ -49,8 +49,8 @@ from .adaptive import AdaptiveContinuation, AdaptiveSettings, ResultRecorder
 from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .continuation import ContinuationSettings, Event, Point
-from .mesh import ErrorEstimator, adapted_mesh, halved
 from .linalg import full_bordered_lu
+from .mesh import ErrorEstimator, adapted_mesh, halved
 from .result import ContinuationResult, Status, _Rows
 
 __all__ = ["BVPError", "BVPResult", "BVPSystem", "Solution", "continue_bvp", "read_file", "solve"]

@@ -172,7 +172,7 @@ class Wall:
         return s
 
     @classmethod
-    def from_spec(cls, spec: str) -> "Wall":
+    def from_spec(cls, spec: str) -> Wall:
         fields = {}
         for part in str(spec).split(","):
             key, _, val = part.partition("=")
@@ -243,7 +243,7 @@ def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tup
 MAX_PENETRATION = 1e-3
 
 
-def default_force_scale(rod, T: float, curve=None, wall: "Wall | None" = None) -> float:
+def default_force_scale(rod, T: float, curve=None, wall: Wall | None = None) -> float:
     """``P`` for a problem whose wall gives none: the largest of the wall forces per unit length the rod must
     carry, ``w`` (its weight), ``|T| kappa`` (pulled or pushed round the axis' curvature ``kappa``, its largest),
     ``EI kappa / L^2`` (bent with the axis) and ``EI c / L^4`` (a weightless rod deflected across the
@@ -286,6 +286,7 @@ def load_conduit(path, L: float, reference: str | None = None):
     import json
     import os
     import tomllib
+
     from .safeio import InputFileError, read_input
     try:  # opened without blocking, checked by fstat: a device, a FIFO or a huge file is refused unread
         doc = tomllib.loads(read_input(path, "toml", what="conduit file").decode("utf-8"))

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -453,7 +453,7 @@ class CircularArc(ReferenceCurve):
         self.span = chord if span is None else float(span)
 
     @classmethod
-    def spanning(cls, span: float, angle: float, theta: float = math.pi / 2) -> "CircularArc":
+    def spanning(cls, span: float, angle: float, theta: float = math.pi / 2) -> CircularArc:
         """The arc from ``0`` to ``span e1`` whose tangent turns by ``angle`` (radians, ``0 < |angle| < 2 pi``),
         bulging toward ``cos(theta) e2 + sin(theta) e3`` (away from it for a negative angle)."""
         if not (math.isfinite(angle) and 0 < abs(angle) < 2 * math.pi):
@@ -788,7 +788,7 @@ class MinimumCurvatureWell(ReferenceCurve):
             raise ValueError("the well's first and last stations coincide: no span")
 
     @classmethod
-    def from_file(cls, path: str, **kw) -> "MinimumCurvatureWell":
+    def from_file(cls, path: str, **kw) -> MinimumCurvatureWell:
         """Stations from a text file: three columns MD, inclination, azimuth (degrees), separated by
         blanks or commas; ``#`` starts a comment; a first line that is not numbers is a header."""
         from .safeio import InputFileError, read_input

@@ -25,8 +25,8 @@ import copy
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -154,7 +154,7 @@ class LU:
                 self._det = (sign, float(np.sum(np.log(np.abs(u)))))
         return self._det
 
-    def with_last_row(self, old_row: np.ndarray, new_row: np.ndarray, u: np.ndarray | None = None) -> "RowUpdatedLU":
+    def with_last_row(self, old_row: np.ndarray, new_row: np.ndarray, u: np.ndarray | None = None) -> RowUpdatedLU:
         """``u``: ``A^{-1} e_n`` if already solved for (a tangent solve)."""
         return RowUpdatedLU(self, old_row, new_row, u)
 

@@ -188,6 +188,7 @@ def _embedding(coarse, fine):
     per field order (the fields of one order share their points and normal equations)."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
+
     from .bspline import gauss_points
     per_order, solvers = {}, []
     for i, m in enumerate(coarse.problem.orders):

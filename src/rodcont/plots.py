@@ -19,6 +19,7 @@ def save_figure(fig: Figure, path: str, dpi: int = 130) -> None:
     The format is the suffix's when matplotlib writes it, else PNG."""
     import io
     import os
+
     from .safeio import publish
     fmt = os.path.splitext(path)[1][1:].lower()
     if fmt not in fig.canvas.get_supported_filetypes():

@@ -24,7 +24,7 @@ array: ``result.folds[0]["p"]`` and ``result.folds["p"]`` both work.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
@@ -378,7 +378,7 @@ class ContinuationResult:
         return np.zeros(x1.size), 1.0
 
     # ---- whole-branch operations --------------------------------------------------------------
-    def _empty_like(self) -> "ContinuationResult":
+    def _empty_like(self) -> ContinuationResult:
         out = self.__class__.__new__(self.__class__)
         out.__dict__.update({k: v for k, v in self.__dict__.items()})
         out.table = {name: [] for name in self.table}
@@ -391,7 +391,7 @@ class ContinuationResult:
             out._raw = None
         return out
 
-    def reversed(self) -> "ContinuationResult":
+    def reversed(self) -> ContinuationResult:
         """The same points in the opposite order (arclength, tangents and signed tangent columns negated)."""
         out = self._empty_like()
         for name, col in self.table.items():
@@ -409,7 +409,7 @@ class ContinuationResult:
     #: columns that change sign with the direction of travel (a driver's tangent components)
     SIGNED_COLUMNS: tuple = ()
 
-    def extend(self, other: "ContinuationResult", skip_first: bool = False) -> None:
+    def extend(self, other: ContinuationResult, skip_first: bool = False) -> None:
         """Append ``other``'s points (without its first when it repeats our last)."""
         s = 1 if skip_first else 0
         n = len(self)

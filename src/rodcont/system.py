@@ -123,7 +123,7 @@ class RodSystem:
         full[self.disc.free_index] = [read[name] for name in self.freed]
         return full
 
-    def without_phase(self) -> "RodSystem":
+    def without_phase(self) -> RodSystem:
         """The same rod, mesh and parameters without a phase condition (:class:`rodcont.ends.Phase`): the physical
         controls, whose Jacobian is singular on the circles of buckled states (the stability count reads it:
         the rotation's null eigenvalue is not counted). ``self`` when there is none; cached per mesh."""
@@ -153,7 +153,7 @@ class RodSystem:
     def _transverse(self) -> np.ndarray:
         return np.concatenate([self.disc.index[0], self.disc.index[1]])
 
-    def with_mesh(self, breakpoints, k: int | None = None) -> "RodSystem":
+    def with_mesh(self, breakpoints, k: int | None = None) -> RodSystem:
         """The same rod and parameters on another partition (and, optionally, another ``k``)."""
         new = RodSystem.__new__(RodSystem)
         new.__dict__.update(self.__dict__)
@@ -171,7 +171,7 @@ class RodSystem:
     def k(self) -> int:
         return self.disc.k
 
-    def transfer(self, x, source: "RodSystem") -> np.ndarray:
+    def transfer(self, x, source: RodSystem) -> np.ndarray:
         """``x`` (a solution or a tangent of ``source``, on its mesh) on this system's mesh."""
         return self.disc.transfer(x, source.disc)
 
@@ -415,10 +415,10 @@ class RodSystem2:
     def k(self) -> int:
         return self.one.disc.k
 
-    def with_mesh(self, breakpoints, k: int | None = None) -> "RodSystem2":
+    def with_mesh(self, breakpoints, k: int | None = None) -> RodSystem2:
         return RodSystem2(self.one.with_mesh(breakpoints, k), self.param)
 
-    def transfer(self, x, source: "RodSystem2") -> np.ndarray:
+    def transfer(self, x, source: RodSystem2) -> np.ndarray:
         return self.one.disc.transfer(x, source.one.disc)
 
     def conform(self, breakpoints) -> np.ndarray:
@@ -457,6 +457,7 @@ def controls_spec(ends) -> dict:
 def ends_from_spec(spec):
     """The :class:`rodcont.ends.RodEnds` of a ``controls`` attribute (a dict or its JSON; empty: the canonical ends)."""
     import json
+
     from .ends import Clamp, Phase, RodEnds, Rotation, Tension, Torque, UnstressedLength
     if isinstance(spec, (str, bytes)):
         spec = json.loads(spec) if spec else {}

@@ -33,16 +33,16 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..branch import Branch
 from ..continuation import Kind, Point
-from ..result import Status, Table
 from ..linalg import LU, SingularMatrix, max_norm
+from ..result import Status, Table
 from ..rod import RodParameters
 from ..system import RodSystem, check_number
 from .solve import check_tension

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -181,8 +181,8 @@ def _open(out, data, meta, result, start: _FoldStart, overwrite):
     if out is None:
         return None, _FoldRecorder(result)
     from ..branchfile import BranchWriter, check_output
-    from .trace import _mesh_group
     from ..safeio import command_inputs
+    from .trace import _mesh_group
     check_output(out, inputs=command_inputs(loaded=[data]), overwrite=overwrite)  # nor the survey it names
     writer = BranchWriter(out, meta, min_points=2)
     group = writer.group("/", extra_columns=(start.param,))

@@ -533,13 +533,14 @@ def write_equilibrium(eq: Equilibrium, out: str, overwrite: bool = False, meta: 
     of the branch in ``phi_L`` at ``T`` through it (a restart's direction). ``export``, ``shape`` and
     ``trace --start F.h5:0`` read it as any branch file; ``max_error`` the guard it was solved to (a restart's
     default)."""
+    import json
+
     from ..branch import CONTACT_COLUMNS, Branch
     from ..branchfile import BranchWriter, check_output
     from ..continuation import Kind, Point
     from ..result import Status
     from ..system import controls_spec
     from .trace import Recorder, StabilityCount, TraceOptions, _ContactRows, _mesh_group, file_meta
-    import json
     sysm, o = eq.system, eq.outputs
     T, phi = float(o["T"]), float(o["phi_L"])
     canon = RodSystem(sysm.rod, T=T, k=sysm.disc.k, breakpoints=sysm.disc.breakpoints, curve=sysm.curve,

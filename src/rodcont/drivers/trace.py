@@ -20,15 +20,14 @@ import dataclasses
 import json
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
-from typing import Callable
 
 import numpy as np
 
 from ..adaptive import Accuracy, AdaptiveContinuation, Hints, ResultRecorder, StartError
 from ..branch import CONTACT_COLUMNS, Branch
-from ..continuation import (ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation,
-                            Tracker)
+from ..continuation import ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation, Tracker
 from ..linalg import scaled_smallest_singular_value
 from ..result import Status
 from ..rod import RodParameters
@@ -273,7 +272,7 @@ class Recorder(ResultRecorder):
     """Adds points to a :class:`Branch` and, if any, to a branch-file group; publishes
     the file on every special point and at least every second."""
 
-    def __init__(self, branch: Branch, writer=None, group=None, contact: "_ContactRows | None" = None,
+    def __init__(self, branch: Branch, writer=None, group=None, contact: _ContactRows | None = None,
                  thin: int = 1):
         """``thin = M > 1``: the branch in memory keeps what a file written with ``store_every = M`` keeps
         (the solution of every M-th point, of the special points and of the last; tangents at the special
@@ -546,8 +545,8 @@ def _within_penetration_guard(system: RodSystem, x0: np.ndarray, notes: list, ma
     mesh resolves (its error estimate within ``max_error``). The branch then keeps
     its law; :class:`PenetrationWatch` says where it goes deeper."""
     from ..contact import MAX_PENETRATION, penetration
-    from .solve import stiffen_contact
     from ..mesh import ErrorEstimator
+    from .solve import stiffen_contact
     p = system.params(system.value())
     P0, depth0 = system.model.contact_scale, penetration(system.model, system.disc, x0, p)
     depth = depth0
@@ -662,6 +661,7 @@ def _circle_modes(J, system) -> list:
     """Two independent null vectors of ``J`` (singular to rounding, with a two-dimensional null space: a critical
     twist of the straight rod), by inverse iteration from two starts, in the problem's scales."""
     from scipy import sparse
+
     from ..linalg import LU, SingularMatrix
     sx = system.arclength_scale()[0]
     A = (J @ sparse.diags(sx)).tocsc()
