@@ -106,3 +106,133 @@ def test_a_helix_too_large_to_represent_is_one_line(reference, capsys):
     assert code == 2 and err.count("\n") == 1
     assert err.startswith("rodcont: error: --reference ") and "too large to represent" in err
     assert "Errno" not in err and "(34," not in err
+
+
+# --------------------------------------------------------------------------
+# Found by calling every name of rodcont.__all__ with one wrong-typed argument at a time: each raised an
+# AttributeError, a message naming no argument (``could not convert string to float: 'x'``) or nothing at all
+# --------------------------------------------------------------------------
+@pytest.mark.parametrize("gammas", ["1", 1.0, None, b"1", {"a": 1.0}])
+def test_sweep_refuses_gammas_that_are_not_a_sequence_of_numbers(gammas, tmp_path):
+    with pytest.raises(TypeError, match="gammas must be a sequence of Gamma values"):
+        rodcont.sweep(gammas, out_dir=str(tmp_path / "s"), max_steps=2, plot=False, jobs=1)
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("kwargs,error,message", [
+    (dict(out_dir=3), TypeError, "out_dir must be a directory name, got 3"),
+    (dict(out_dir=None), TypeError, "out_dir must be a directory name"),
+    (dict(N="abc"), TypeError, "N must be an integer"),
+    (dict(N=0), ValueError, r"N \(number of subintervals\)"),
+    (dict(k=[5]), TypeError, "k must be an integer"),
+    (dict(executor="abc"), TypeError, "executor must be a concurrent.futures.Executor"),
+])
+def test_sweep_refuses_a_wrong_directory_mesh_or_executor_before_any_job(kwargs, error, message, tmp_path):
+    kwargs = dict(dict(out_dir=str(tmp_path / "s")), **kwargs)
+    with pytest.raises(error, match=message):
+        rodcont.sweep([1.0], max_steps=2, plot=False, jobs=1, **kwargs)
+    assert not (tmp_path / "s").exists()
+
+
+def test_sweep_into_a_file_is_refused_in_one_sentence(tmp_path):
+    f = tmp_path / "notes.txt"
+    f.write_text("mine\n")
+    with pytest.raises(ValueError, match="out_dir .*notes.txt exists and is not a directory"):
+        rodcont.sweep([1.0], out_dir=str(f), max_steps=2, plot=False, jobs=1)
+    assert f.read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("direction", ["x", "0,0,-1", {"x": 1}, object(), b"z"])
+def test_a_weight_direction_that_is_not_a_vector_names_it(direction):
+    with pytest.raises(TypeError, match=r"weight_direction must be a 3-vector of numbers \(X, Y, Z\)"):
+        rodcont.RodParameters(weight_direction=direction)
+    with pytest.raises(ValueError, match="weight_direction must be a non-zero 3-vector"):
+        rodcont.RodParameters(weight_direction=(0, 1))
+    assert rodcont.RodParameters(weight_direction=[0, 0, -2]).weight_direction == (0.0, 0.0, -1.0)
+
+
+@pytest.mark.parametrize("breakpoints", ["abc", "0 0.5 1", {"a": 1}, b"x", object()])
+def test_trace_breakpoints_that_are_not_numbers_are_named(breakpoints):
+    with pytest.raises(TypeError, match=r"breakpoints must be a sequence of numbers \(the mesh's\)"):
+        rodcont.trace(1.0, breakpoints=breakpoints, max_steps=2)
+
+
+def test_trace_refuses_meta_settings_and_resume_of_the_wrong_type():
+    for kwargs, message in [(dict(meta=3), "meta must be a dict, got 3"),
+                            (dict(meta=[("a", 1)]), "meta must be a dict"),
+                            (dict(settings={"ds": 0.1}), "settings must be a rodcont.ContinuationSettings"),
+                            (dict(resume="g1.h5"), r"resume must be a rodcont.Branch .*rodcont.load_branch\(out\)")]:
+        with pytest.raises(TypeError, match=message):
+            rodcont.trace(1.0, max_steps=2, **kwargs)
+
+
+@pytest.mark.parametrize("out", [3, ["g.h5"], 1.5])
+def test_an_output_that_is_not_a_file_name_is_a_type_error(out, bratu_start):
+    with pytest.raises(TypeError, match="out must be a file name"):
+        rodcont.trace(1.0, max_steps=2, out=out)
+    with pytest.raises(TypeError, match="out must be a file name"):
+        rodcont.continue_bvp(BRATU, "lam", bratu_start, (0.0, 0.5), out=out)
+
+
+def test_an_output_may_be_a_path(tmp_path):
+    br = rodcont.trace(1.0, max_steps=2, out=tmp_path / "g.h5")
+    assert len(rodcont.load_branch(str(tmp_path / "g.h5"))) == len(br) == 3
+
+
+def test_diagram_refuses_wrong_types_of_its_arguments():
+    for kwargs, error, message in [
+            (dict(deflate_at=3.0), TypeError, "deflate_at must be a sequence of numbers, got 3.0"),
+            (dict(deflate_at="12"), TypeError, "deflate_at must be a sequence of numbers"),
+            (dict(deflate_at=[float("nan")]), ValueError, "deflate_at must be a finite number"),
+            (dict(callback=3), TypeError, "callback must be a function of the point, got 3"),
+            (dict(progress="print"), TypeError, "progress must be a function of a line of text"),
+            (dict(meta=[1]), TypeError, "meta must be a dict"),
+            (dict(resumed="D.h5"), TypeError, "resumed must be a sequence of DiagramBranch"),
+            (dict(resumed=[1, 2]), TypeError, "resumed must be a sequence of DiagramBranch")]:
+        with pytest.raises(error, match=message):
+            rodcont.diagram(1.0, phi_max=12.0, max_steps=3, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def fold_branch():
+    return rodcont.trace(1.0, stretch_max=0.2)
+
+
+def test_fold_curve_refuses_wrong_types_of_its_arguments(fold_branch):
+    for kwargs, error, message in [
+            (dict(forced=1.0), TypeError, "forced must be a sequence of numbers, got 1.0"),
+            (dict(forced=None), TypeError, "forced must be a sequence of numbers"),
+            (dict(callback="x"), TypeError, "callback must be a function of the point"),
+            (dict(min_alignment="abc"), TypeError, "min_alignment must be a number"),
+            (dict(min_alignment=float("nan")), ValueError, "min_alignment must be a finite number"),
+            (dict(min_alignment=2.0), ValueError, r"min_alignment must be in \[0, 1\)")]:
+        with pytest.raises(error, match=message):
+            rodcont.fold_curve(fold_branch, 0, "gamma", 0.95, 1.05, max_steps=2, **kwargs)
+
+
+@pytest.mark.parametrize("direction", ["up", None, [1], 0, 2, 0.5, True, float("nan")])
+def test_continue_bvp_direction_is_plus_or_minus_one(direction, bratu_start):
+    with pytest.raises(ValueError, match=r"direction must be \+1 or -1, got"):
+        rodcont.continue_bvp(BRATU, "lam", bratu_start, (0.0, 0.5), direction=direction)
+
+
+def test_rod_system_refuses_a_rod_or_loads_that_are_not_numbers():
+    for kwargs, message in [(dict(rod="rod", gamma=1.0), "rod must be a RodParameters, got 'rod'"),
+                            (dict(rod=None, gamma=1.0), "rod must be a RodParameters"),
+                            (dict(gamma="1"), "gamma must be a number, got '1'"),
+                            (dict(gamma=1.0, phi_L=[2.0]), r"phi_L must be a number, got \[2.0\]"),
+                            (dict(T=b"10"), "T must be a number")]:
+        kwargs = dict(dict(rod=rodcont.RodParameters()), **kwargs)
+        with pytest.raises(TypeError, match=message):
+            rodcont.RodSystem(**kwargs)
+
+
+def test_a_straight_reference_names_what_is_wrong_in_one_line():
+    for kwargs, error, message in [(dict(length="abc"), TypeError, "reference length L must be a number"),
+                                   (dict(K1="abc"), TypeError, "K1 must be a 3-vector of numbers"),
+                                   (dict(K1=(1,)), ValueError, "K1 must be a 3-vector of finite numbers"),
+                                   (dict(K2=(0, 0, float("inf"))), ValueError, "K2 must be a 3-vector of finite"),
+                                   (dict(origin={"x": 0}), TypeError, "origin must be a 3-vector of numbers")]:
+        with pytest.raises(error, match=message) as exc:
+            rodcont.StraightReference(**kwargs)
+        assert "\n" not in str(exc.value)

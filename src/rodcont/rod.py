@@ -227,7 +227,7 @@ class RodParameters:
                 raise ValueError(f"{name} = {v!r} is outside the range rodcont computes with (1e-100 .. 1e100): "
                                  f"change units")
             setattr(self, name, float(v))
-        g = np.asarray(self.weight_direction, float)
+        g = _vector3("weight_direction", self.weight_direction)
         if g.shape != (3,) or not np.isfinite(g).all() or not np.any(g != 0):
             raise ValueError("weight_direction must be a non-zero 3-vector of finite numbers")
         g = g / np.max(np.abs(g))  # scaled first: a huge vector has a finite norm
@@ -901,7 +901,12 @@ class EulerianRod:
         """A given mesh spans the domain ``[0, curve.length]`` and holds every station (a well's, a clearance
         table's): on another span it would solve another rod without a word (breakpoints ``0 .. 0.9`` of a span
         of 1 put the Gamma = 1 fold at 12.824 instead of 13.09999)."""
-        b = np.asarray(breakpoints, float)
+        if isinstance(breakpoints, (str, bytes, dict)):
+            raise TypeError(f"breakpoints must be a sequence of numbers (the mesh's), got {breakpoints!r}")
+        try:
+            b = np.asarray(breakpoints, float)
+        except (TypeError, ValueError):
+            raise TypeError(f"breakpoints must be a sequence of numbers (the mesh's), got {breakpoints!r}") from None
         if b.ndim != 1 or b.size < 2 or not np.all(np.isfinite(b)):
             raise ValueError("breakpoints must be a strictly increasing sequence of at least 2 finite values")
         check_mesh_size(b.size - 1, k)
@@ -1171,6 +1176,16 @@ class _Outputs:
 #: bytes a discretisation takes per unknown at k = 5 (the Jacobian, its LU and the evaluation matrices; measured
 #: 1.5 GB at N = 8000, 240 011 unknowns), scaled by (k + 3) / 8 for other k
 BYTES_PER_UNKNOWN = 6500.0
+
+
+def _vector3(name: str, value) -> np.ndarray:
+    """``value`` as a float array; a ``TypeError`` naming ``name`` when it is not a vector of numbers."""
+    if isinstance(value, (str, bytes, dict)):
+        raise TypeError(f"{name} must be a 3-vector of numbers (X, Y, Z), got {value!r}")
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a 3-vector of numbers (X, Y, Z), got {value!r}") from None
 
 
 def check_mesh_size(N: int, k: int) -> None:
