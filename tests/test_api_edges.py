@@ -236,3 +236,35 @@ def test_a_straight_reference_names_what_is_wrong_in_one_line():
         with pytest.raises(error, match=message) as exc:
             rodcont.StraightReference(**kwargs)
         assert "\n" not in str(exc.value)
+
+
+# --------------------------------------------------------------------------
+# rodcont.continuation: the module and the function re-exported under its name were two objects, which one
+# ``rodcont.continuation`` (and ``import rodcont.continuation as m``) gave depending on what was imported first
+# --------------------------------------------------------------------------
+_ORDERS = ["import rodcont; f = rodcont.continuation; import rodcont.continuation as m",
+           "import rodcont.continuation as m; import rodcont; f = rodcont.continuation",
+           "import rodcont; rodcont.trace; rodcont.Tracker; import rodcont.continuation as m; f = rodcont.continuation",
+           "from rodcont import continuation as f; import rodcont.continuation as m"]
+_CHECK = """
+import types, numpy as np, scipy.sparse as sp, rodcont
+from rodcont.continuation import continuation as function
+class Line:  # x = p
+    def residual(self, x, p): return x - p
+    def tangent(self, x, p): return sp.identity(1, format="csc"), np.array([-1.0])
+assert m is f is rodcont.continuation and isinstance(m, types.ModuleType), (m, f)
+assert m.Tracker is rodcont.Tracker and callable(function) and not isinstance(function, types.ModuleType)
+res = f(Line(), np.array([0.0]), 0.0, m.ContinuationSettings(ds=0.1, ds_max=0.1, max_steps=4))
+assert str(res.status) == "max_steps" and abs(res.table["p"][-1] - 0.4) < 1e-12, res.table["p"]
+"""
+
+
+@pytest.mark.parametrize("order", _ORDERS)
+def test_rodcont_continuation_is_the_module_and_calls_the_function_whatever_came_first(order):
+    import os
+    import subprocess
+    import sys
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    r = subprocess.run([sys.executable, "-c", order + "\n" + _CHECK], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, PYTHONPATH=src))
+    assert r.returncode == 0, r.stderr

@@ -1094,3 +1094,15 @@ def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, 
     result.set_status(tr.stop.status if tr.stop is not None else Status.MAX_STEPS, tr.stop_reason)
     result.steps, result.newton_iterations = tr.steps, tr.newton_iterations
     return result
+
+
+class _CallableModule(type(math)):
+    """This module, callable as its function :func:`continuation`: the package re-exports the function under
+    the module's own name, so ``rodcont.continuation`` is one object whatever was imported first (the module,
+    ``import rodcont.continuation as m``, and the function, ``rodcont.continuation(problem, x0, p0)``)."""
+
+    def __call__(self, *args, **kwargs) -> ContinuationResult:
+        return continuation(*args, **kwargs)
+
+
+__import__("sys").modules[__name__].__class__ = _CallableModule
