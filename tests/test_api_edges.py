@@ -268,3 +268,10 @@ def test_rodcont_continuation_is_the_module_and_calls_the_function_whatever_came
     r = subprocess.run([sys.executable, "-c", order + "\n" + _CHECK], capture_output=True, text=True, timeout=120,
                        env=dict(os.environ, PYTHONPATH=src))
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("name", ["newton_tol", "fold_tol", "locate_tol", "newton_max_iter", "chord_max_iter",
+                                  "locate_max_iter"])
+def test_continuation_settings_name_the_tolerance_or_limit_that_is_wrong(name):
+    with pytest.raises(ValueError, match=name):
+        rodcont.ContinuationSettings(**{name: -1})
