@@ -275,3 +275,13 @@ def test_rodcont_continuation_is_the_module_and_calls_the_function_whatever_came
 def test_continuation_settings_name_the_tolerance_or_limit_that_is_wrong(name):
     with pytest.raises(ValueError, match=name):
         rodcont.ContinuationSettings(**{name: -1})
+
+
+def test_loads_must_be_a_list_of_loads():
+    from rodcont.loads import Weight
+    for loads in (3, Weight()):
+        with pytest.raises(TypeError, match="loads must be a list of rodcont.loads.DistributedLoad"):
+            rodcont.EulerianRod(loads=loads)
+    with pytest.raises(TypeError, match="a load must be a rodcont.loads.DistributedLoad, got 'w'"):
+        rodcont.EulerianRod(loads="w")
+    assert len(rodcont.EulerianRod(loads=[Weight()]).loads) == 1

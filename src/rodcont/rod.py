@@ -373,6 +373,8 @@ class EulerianRod:
             from .contact import Wall
             if not isinstance(wall, Wall):
                 raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        if isinstance(loads, DistributedLoad) or not (loads is None or hasattr(loads, "__iter__")):
+            raise TypeError(f"loads must be a list of rodcont.loads.DistributedLoad, got {loads!r}")
         loads = [Weight()] if loads is None else list(loads)
         for load in loads:
             if not isinstance(load, DistributedLoad):
