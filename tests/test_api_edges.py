@@ -285,3 +285,9 @@ def test_loads_must_be_a_list_of_loads():
     with pytest.raises(TypeError, match="a load must be a rodcont.loads.DistributedLoad, got 'w'"):
         rodcont.EulerianRod(loads="w")
     assert len(rodcont.EulerianRod(loads=[Weight()]).loads) == 1
+
+
+@pytest.mark.parametrize("k", ["abc", "5", 5.0, 0, 8, True])
+def test_a_rod_system_names_a_wrong_number_of_gauss_points(k):
+    with pytest.raises(ValueError, match=r"k \(Gauss points per subinterval\) must be an integer in 1..7"):
+        rodcont.RodSystem(rodcont.RodParameters(), gamma=1.0, k=k)

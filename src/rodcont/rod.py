@@ -1194,6 +1194,8 @@ def check_mesh_size(N: int, k: int) -> None:
     """Refuse a mesh the machine cannot hold (``ValueError``, one line): ``N`` subintervals of ``k`` Gauss points
     need about ``BYTES_PER_UNKNOWN (k + 3)/8`` bytes for each of their ``6 N k + 11`` unknowns (``N = 10^9`` would
     take petabytes; ``critical_twists(N_fine=10^7)`` ran to 10 GB before it was stopped)."""
+    if isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and 1 <= k <= 7):
+        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k!r}")
     need = BYTES_PER_UNKNOWN * (int(k) + 3) / 8.0 * (6.0 * int(N) * int(k) + 11.0)
     have = _physical_memory()
     if need > have:
