@@ -351,10 +351,11 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     check_callable("callback", callback, "a function of the point")
     check_callable("progress", progress, "a function of a line of text")
     check_mapping("meta", meta)
+    given = resumed
     resumed = list(resumed) if hasattr(resumed, "__iter__") and not isinstance(resumed, (str, bytes)) else [None]
     if not all(isinstance(db, DiagramBranch) for db in resumed):
         raise TypeError(f"resumed must be a sequence of DiagramBranch (the complete branches of the interrupted "
-                        f"run), got {resumed!r}")
+                        f"run), got {given!r}")
     if deflate_at and ends is not None:
         raise ValueError("deflation (--deflate) works with the tension imposed, not under length control (--l0)")
     store_every = check_number("store_every", store_every, integer=True)

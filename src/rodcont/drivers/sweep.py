@@ -147,7 +147,7 @@ def _checked(gammas, rod, jobs, options):
 def _check_run(out_dir, N, k, executor) -> None:
     """The output directory, the mesh and the executor of a sweep, checked before any job starts (a wrong one
     would otherwise fail in every job, or in ``os.makedirs``)."""
-    if isinstance(out_dir, bool) or not isinstance(out_dir, (str, os.PathLike)):
+    if not isinstance(out_dir, (str, os.PathLike)):
         raise TypeError(f"out_dir must be a directory name, got {out_dir!r}")
     if os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise ValueError(f"out_dir {os.fspath(out_dir)} exists and is not a directory")
