@@ -31,7 +31,12 @@ For every probe it checks: the exit status; the stderr rule above on any
 non-zero exit; no ``Traceback`` in stdout or stderr; no hang (timeout); on a
 failure the probe directory is byte-for-byte what it was before (no new file,
 no temporary or lock file, no input changed); on success no input changed and
-no temporary or lock file left behind.
+no temporary or lock file left behind. A probe may also check the answer itself
+(``check``: folds, torques, stability counts, contact values, columns; issue 22's
+classes: the same answer in other units, at default settings, in conduits, with a
+tighter guard), a phrase it must or must not print, or be a call of the Python API
+(``python``: a TypeError/ValueError is its clean one-line error, anything else a
+traceback).
 
 Usage::
 
@@ -102,6 +107,9 @@ class Probe:
     heavy: bool = False             # skipped by --quick
     ro_cwd: bool = False            # with user: the probe directory itself is read-only for that user
     must_say: str = ""              # a phrase stdout or stderr must hold (what a carried option, a warning says)
+    must_not_say: str = ""          # a phrase neither may hold (a warning an accurate answer has no cause for)
+    check: Callable | None = None   # check(result) -> None, or what is wrong with the answer (values, files)
+    python: str | None = None       # a call of the Python API instead of a command line (see _api_code)
     id: int = 0
 
     def probe_cmd(self) -> str:
@@ -109,6 +117,8 @@ class Probe:
 
 
 def _shell(args) -> str:
+    if args[:2] == ["python", "-c"]:
+        return "python -c " + shlex.quote(args[2])
     return "rodcont " + " ".join(shlex.quote(a) for a in args)
 
 
@@ -1278,6 +1288,326 @@ def safety_probes() -> list[Probe]:
 
 
 # --------------------------------------------------------------------------
+# Issue 22, items 1-8 and 15-19: right values in any units, at default settings, in conduits; the API's edges;
+# honest lines, warnings, names and columns. A probe here checks the answer too (check: values, files).
+# --------------------------------------------------------------------------
+LAGRANGE = {"F1": 13.099993823462134, "T1": 8.313547463421958,      # Gamma = 1, primary fold (tests/data)
+            "F2": 21.022797120653017, "T2": 14.959167916299174,     # Gamma = 1, the 1 -> 2 fold
+            "S": 29.24198617625434, "TS": 21.56391782887474,        # Gamma = 1, the 2 -> 3 fold (seed 25.778)
+            "G5": 39.754157511598976}                                # Gamma = 5, the 3 -> 4 fold (below 40)
+# (name, --T --w --EI --GJ --EA --L, length unit, force unit): the canonical rod (T 10, w 10, EI 1, GJ 0.75,
+# EA 255, L 1) in other units; every dimensionless group the same, Phi the same, torques times F L
+UNITS = [("length x10", 10.0, 1.0), ("force x1e6", 1.0, 1e6), ("length x1e-3, force x1e3", 1e-3, 1e3),
+         ("length x1e3", 1e3, 1.0)]
+WELL = ["--T", "1e5", "--phi", "0", "--L", "973.077121578337", "--EI", "1.25e6", "--GJ", "9.6e5", "--EA", "7.15e8",
+        "--w", "235"]
+WELL_SIDE_FORCE = 136440.6     # the README's drill pipe in conduit_well.toml at N = 2000 (issue 22 item 3)
+GUIDEWIRE = ["--T", "0.01", "--w", "6e-6", "--EI", "1e-5", "--GJ", "7.7e-6", "--EA", "5800", "--L", "0.3"]
+
+
+def _rod(lu: float, fu: float) -> list:
+    return ["--T", f"{10 * fu:.17g}", "--w", f"{10 * fu / lu:.17g}", "--EI", f"{fu * lu * lu:.17g}",
+            "--GJ", f"{0.75 * fu * lu * lu:.17g}", "--EA", f"{255 * fu:.17g}", "--L", f"{lu:.17g}"]
+
+
+def _values(text: str) -> dict:
+    """The ``name value`` lines of a summary (solve's), as floats where they read as one."""
+    out = {}
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and not line.startswith("#"):
+            try:
+                out[parts[0]] = float(parts[1])
+            except ValueError:
+                pass
+    return out
+
+
+def _folds(res, name="o.h5") -> list:
+    """The folds of a branch or diagram file the probe wrote (rodcont's own reader)."""
+    sys.path.insert(0, os.path.join(REPO, "src"))
+    import rodcont
+    return list(rodcont.load_diagram(os.path.join(res.cwd, name)).folds)
+
+
+def _fold_check(phi: float, torque: float | None, scale: float, counts: tuple | None, waves: tuple | None,
+                tol: float = 1e-8, name: str = "o.h5"):
+    """One fold near ``phi`` (within 0.05): its Phi within ``tol``, torque / scale within 1e-8 relative,
+    the unstable counts before | after and the waves before -> after as given."""
+    def check(res):
+        near = [f for f in _folds(res, name) if abs(f["phi_L"] - phi) < 0.05]
+        if len(near) != 1:
+            return f"{len(near)} folds near Phi = {phi} (expected 1)"
+        f = near[0]
+        if abs(f["phi_L"] - phi) > tol:
+            return f"fold at Phi = {f['phi_L']!r}, {abs(f['phi_L'] - phi):.2g} from {phi!r} (> {tol:g})"
+        if torque is not None and abs(f["torque"] / scale / torque - 1) > 1e-8:
+            return f"fold torque {f['torque']!r}, not {torque * scale!r} (torque x F L = {scale:g})"
+        if counts is not None and (int(f["unstable_before"]), int(f["unstable_after"])) != counts:
+            return f"stable counts {f['unstable_before']} | {f['unstable_after']}, not {counts[0]} | {counts[1]}"
+        if waves is not None and (int(f["waves_before"]), int(f["waves_after"])) != waves:
+            return f"waves {f['waves_before']} -> {f['waves_after']}, not {waves[0]} -> {waves[1]}"
+        return None
+    return check
+
+
+def _both(*checks):
+    def check(res):
+        return next((w for w in (c(res) for c in checks) if w), None)
+    return check
+
+
+def _conduit_file(name: str, clearance: float):
+    def f(d):
+        with open(os.path.join(d, name), "w") as fh:
+            fh.write(f'[conduit]\nclearance = {clearance!r}\neps = 1e-5\n')
+    return f
+
+
+def _last_point_like(ref: str, lu: float, fu: float):
+    """The last point of the trace (o.h5) is the reference file's in other units: torque x F L, side force x F,
+    gap x L (to 1e-6 of the clearance), the same stretch, waves, unstable modes and contact zones."""
+    def check(res):
+        import h5py
+        with h5py.File(os.path.join(res.cwd, ref), "r") as f0, h5py.File(os.path.join(res.cwd, "o.h5"), "r") as f1:
+            a, b = ({k: g["branch"][k][-1] for k in ("phi_L", "torque", "side_force", "min_gap", "stretch",
+                                                      "helical_waves", "unstable_modes", "contact_zones")}
+                    for g in (f0, f1))
+        for k, scale in (("phi_L", 1.0), ("torque", fu * lu), ("side_force", fu), ("stretch", 1.0)):
+            if abs(b[k] / scale - a[k]) > 1e-6 * max(abs(a[k]), 1e-12):
+                return f"{k} {b[k]!r} at the end, not {a[k] * scale!r} ({ref}'s x {scale:g})"
+        if abs(b["min_gap"] / lu - a["min_gap"]) > 1e-6 * 0.01:
+            return f"min_gap {b['min_gap']!r}, not {a['min_gap'] * lu!r}"
+        for k in ("helical_waves", "unstable_modes", "contact_zones"):
+            if int(b[k]) != int(a[k]):
+                return f"{k} {int(b[k])} at the end, not {int(a[k])} as in {ref}"
+        return None
+    return check
+
+
+def _counts_follow_greenhill(res):
+    """The weightless straight rod under T = 10 (EI 1, GJ 0.75, EA 255): unstable_modes 0 below the first
+    critical torque (tests/closed_forms.py), 2 above it, at every stored point (2 % away from it)."""
+    import h5py
+    sys.path.insert(0, os.path.join(REPO, "tests"))
+    from closed_forms import critical_twists as closed_form
+    phi_c = closed_form(10.0, phi_max=20.0)[0]
+    with h5py.File(os.path.join(res.cwd, "o.h5"), "r") as f:
+        phi, n = f["branch/phi_L"][()], f["branch/unstable_modes"][()]
+    below, above = n[phi < 0.98 * phi_c], n[phi > 1.02 * phi_c]
+    if below.size and below.max() != 0:
+        return f"unstable_modes {int(below.max())} stored below the critical twist {phi_c:.6f}"
+    if above.size and not (above == 2).all():
+        return f"unstable_modes {sorted(set(above.tolist()))} stored above the critical twist {phi_c:.6f} (2)"
+    return None if above.size else "the trace did not pass the critical twist"
+
+
+def _solve_accurate(side_force: float | None = None, rel: float = 1e-3, min_gap: float | None = None):
+    """A solve's summary: error and side_force_error below their guards (1e-6, 1e-3), the side force within
+    ``rel`` of ``side_force``, the gap above ``min_gap`` (a penetration guard)."""
+    def check(res):
+        if res.rc != 0:
+            return None
+        v = _values(res.stdout)
+        if v.get("error", 1.0) > 1e-6 or v.get("side_force_error", 0.0) > 1e-3:
+            return f"error {v.get('error')} / side_force_error {v.get('side_force_error')} above the guards"
+        if side_force is not None and abs(v["side_force"] / side_force - 1) > rel:
+            return f"side_force {v['side_force']!r}, not within {rel:g} of {side_force!r}"
+        if min_gap is not None and v["min_gap"] < min_gap:
+            return f"min_gap {v['min_gap']!r}: deeper in the wall than {min_gap:g} (1e-3 of the clearance)"
+        return None
+    return check
+
+
+def _no_defect_line(res):
+    return "prints a 'defect' line beside 'error'" if re.search(r"^defect\b", res.stdout, re.M) else None
+
+
+def _csv_columns(*names):
+    def check(res):
+        with open(os.path.join(res.cwd, "e.csv")) as fh:
+            head = next(ln for ln in fh if not ln.startswith("#"))
+        cols = re.split(r"[,\s]+", head.strip())
+        missing = [c for c in names if c not in cols]
+        return f"export has no column(s) {', '.join(missing)} (has {', '.join(cols)})" if missing else None
+    return check
+
+
+def _warning_with_cause(cause: str):
+    def check(res):
+        lines = [ln for ln in res.stderr.splitlines() if ln.startswith("rodcont: warning:")]
+        return None if any(cause in ln for ln in lines) else f"no 'rodcont: warning:' line saying {cause!r}"
+    return check
+
+
+def _progress_names(param: str):
+    def check(res):
+        text = res.stdout + res.stderr
+        if re.search(r"\bp_(max|min)\b|\bp = ", text):
+            return "stop message says p (the engine's name), not " + param
+        if re.search(r"^point\s+\d+\s+Phi\b", text, re.M):
+            return f"progress prints Phi for a trace in {param}"
+        return None
+    return check
+
+
+_API_CODE = """import sys, warnings
+sys.path.insert(0, {src!r})
+warnings.simplefilter("ignore")
+import rodcont
+try:
+{body}
+except (TypeError, ValueError, rodcont.BranchFileError) as exc:
+    sys.stderr.write(f"rodcont: error: {{type(exc).__name__}}: {{exc}}\\n")
+    sys.exit(2)
+"""
+
+
+def _api_code(call: str) -> str:
+    """A Python API call as a probe: a TypeError/ValueError (a BranchFileError for a file) is the clean error
+    (one line, exit 2, as the CLI's); anything else raised is a traceback (a failure); a return is exit 0."""
+    return _API_CODE.format(src=os.path.join(REPO, "src"), body="\n".join("    " + ln for ln in call.splitlines()))
+
+
+# (call, expectation, a phrase the message must hold, why)
+API_EDGES = [
+    ('rodcont.sweep("1", out_dir="s")', "err", "gammas", "a string for the Gamma values"),
+    ('rodcont.sweep(1.0, out_dir="s")', "err", "gammas", "one number for the Gamma values"),
+    ('rodcont.sweep([1.0], out_dir=3)', "err", "out_dir", "a number for the directory"),
+    ('rodcont.sweep([1.0], out_dir="s", N="abc")', "err", "N must be", "a string mesh, before any job"),
+    ('rodcont.sweep([1.0], out_dir="s", executor="abc")', "err", "executor", "not an executor"),
+    ('rodcont.sweep([1.0], out_dir="F.h5")', "err", "not a directory", "a file as out_dir"),
+    ('rodcont.RodParameters(weight_direction="x")', "err", "weight_direction", "a letter for the direction"),
+    ('rodcont.RodParameters(weight_direction=(0, 1))', "err", "weight_direction", "a 2-vector"),
+    ('rodcont.trace(1.0, breakpoints="abc")', "err", "breakpoints", "a string mesh"),
+    ('rodcont.trace(1.0, breakpoints=[0, 0.3, 0.6, 0.9])', "err", "span", "a mesh short of the span (item 5)"),
+    ('rodcont.solve(gamma=1.0, phi=5.0)', "err", "phi_L", "phi for phi_L: named, no internal function (16)"),
+    ('rodcont.solve(gamma=1.0, phi_L=1.0, T=10.0)', "err", "gamma", "gamma and T both (item 5)"),
+    ('assert rodcont.critical_twists(T=1e20) == []', "ok", "", "no critical twist under a huge tension (5)"),
+    ('rodcont.critical_twists(N_fine=0)', "err", "N_fine", "an empty refining mesh (item 11)"),
+    ('rodcont.critical_twists(N_fine=10**7)', "err", "GiB", "a mesh the machine cannot hold (11)"),
+    ('rodcont.solve(gamma=1.0, phi_L=1.0, N=10**9)', "err", "N", "a mesh the machine cannot hold (11)"),
+    ('rodcont.fold_curve(rodcont.load_branch("F.h5"), 0, "gamma", 0.9, 1.1, N_max=0)', "err", "N_max", "(11)"),
+    ('rodcont.fold_curve("F.h5", 0, "gamma", 0.9, 1.1)', "err", "load_branch", "a path for the branch"),
+    ('rodcont.fold_curve(rodcont.load_branch("F.h5"), 0, "gamma", 0.9, 1.1, forced=1.0)', "err", "forced",
+     "one number for the forced values"),
+    ('d = rodcont.load_diagram("F.h5")\nassert len(d.branches) == 1 and len(d.folds) == 1', "ok", "",
+     "a branch file read as a diagram: its one branch and its fold (16)"),
+    ('rodcont.load_branch(None)', "err", "path", "no file name"),
+    ('rodcont.trace(1.0, out=3)', "err", "out", "a number for the output"),
+    ('rodcont.trace(1.0, resume="X.h5")', "err", "resume", "a path for the branch to resume"),
+    ('rodcont.trace(1.0, meta=3)', "err", "meta", "a number for the metadata"),
+    ('rodcont.diagram(1.0, deflate_at=12.0)', "err", "deflate_at", "one number for the deflation twists"),
+    ('rodcont.diagram(1.0, callback=3)', "err", "callback", "a number for the callback"),
+    ('rodcont.RodSystem("rod", gamma=1.0)', "err", "rod", "a string for the rod"),
+    ('rodcont.StraightReference(K1=(1,))', "err", "K1", "a 1-vector frame (one line, not numpy's two)"),
+    ('rodcont.solve(gamma=1.0, phi_L=1.0, curve="helix:1e300,1")', "err", "too large", "a helix beyond floats"),
+    ('import types, rodcont.continuation as m\nassert m is rodcont.continuation and isinstance(m, types.ModuleType)'
+     '\nassert m.Tracker is rodcont.Tracker and callable(rodcont.continuation)', "ok", "",
+     "rodcont.continuation: the module, callable as the function"),
+    ('b = rodcont.trace(1.0, k=2, stretch_max=0.2)\nf = b.folds[0]\n'
+     f'assert abs(f["phi_L"] - {LAGRANGE["F1"]!r}) <= b.table["error"][f["index"]], f', "ok", "",
+     "k = 2: the fold's stored estimate bounds its error (item 5)"),
+]
+
+
+def issue22_probes() -> list[Probe]:
+    P = []
+    # -- 1. units: folds, torques, waves and stability counts of a trace and a diagram, a conduit trace
+    for name, lu, fu in UNITS:
+        P.append(Probe("issue22:units", ["trace", *_rod(lu, fu), "--from-straight", "25.778", "--out", "o.h5",
+                                         "--quiet"], "ok", f"the Gamma = 1 branch from 25.778 in {name}",
+                       check=_fold_check(LAGRANGE["S"], LAGRANGE["TS"], fu * lu, (4, 5), (2, 3)),
+                       must_not_say="warning", timeout=180))
+    for name, lu, fu in UNITS[:2]:
+        P.append(Probe("issue22:units", ["diagram", *_rod(lu, fu), "--phi-max", "25", "--out", "o.h5", "--quiet"],
+                       "ok", f"the Gamma = 1 diagram to 25 in {name}", must_not_say="warning", timeout=300,
+                       check=_both(_fold_check(LAGRANGE["F1"], LAGRANGE["T1"], fu * lu, (0, 1), (0, 1)),
+                                   _fold_check(LAGRANGE["F2"], LAGRANGE["T2"], fu * lu, (2, 3), (1, 2)))))
+        P.append(Probe("issue22:units", ["trace", *_rod(lu, fu), "--conduit", "c.toml", "--phi-max", "3", "--out",
+                                         "o.h5", "--quiet"], "ok",
+                       f"the straight conduit trace (P.h5) in {name}: the same point at Phi = 3", files=("P.h5",),
+                       setup=_conduit_file("c.toml", 0.01 * lu), setup_desc=f"conduit_straight.toml, clearance "
+                       f"{0.01 * lu:g}", check=_last_point_like("P.h5", lu, fu), timeout=180))
+    # -- 2. the stored count at every point, not only where it was computed
+    P.append(Probe("issue22:stored-counts", ["trace", "--T", "10", "--w", "0", "--phi-max", "20", "--out", "o.h5",
+                                             "--quiet"], "ok", "the weightless rod past Greenhill's twist",
+                   check=_counts_follow_greenhill, timeout=180))
+    # -- 3. conduits at their default mesh: every shipped example as its file says, accurate and quiet
+    ex = lambda n: os.path.join(REPO, "examples", n)  # noqa: E731
+    for n in ("conduit_arc.toml", "conduit_bump.toml", "conduit_helix.toml", "conduit_taper.toml"):
+        P.append(Probe("issue22:conduit-defaults", ["solve", "--gamma", "1", "--phi", "0", "--conduit", ex(n)], "ok",
+                       f"{n}'s documented solve: within its guards, no warning", must_not_say="warning",
+                       check=_solve_accurate(), timeout=180))
+    P.append(Probe("issue22:conduit-defaults", ["solve", *WELL, "--conduit", ex("conduit_well.toml")], "ok",
+                   "the README's drill pipe in conduit_well.toml at the default mesh", must_not_say="warning",
+                   check=_solve_accurate(WELL_SIDE_FORCE), timeout=180))
+    P.append(Probe("issue22:conduit-defaults", ["solve", *WELL, "--conduit", ex("conduit_well.toml"), "--uniform",
+                                                "--N", "20"], "any",
+                   "the well on a uniform mesh of 20 that cannot see its stations: refused, or right",
+                   check=_solve_accurate(WELL_SIDE_FORCE), timeout=180))
+    P.append(Probe("issue22:conduit-defaults", ["trace", "--gamma", "1", "--conduit", ex("conduit_taper.toml"),
+                                                "--phi-max", "25", "--out", "o.h5", "--quiet"], "ok",
+                   "conduit_taper.toml's documented trace", must_not_say="warning", timeout=400))
+    # -- 4. penetration: the guidewire at the default force scale
+    arc = lambda d: open(os.path.join(d, "g.toml"), "w").write(  # noqa: E731
+        '[conduit]\nreference = "arc:0.6"\nclearance = 0.001\neps = 1e-5\n')
+    for cmd in (["solve", "--phi", "0"], ["trace", "--phi-max", "2", "--out", "o.h5", "--quiet"]):
+        P.append(Probe("issue22:penetration", cmd + GUIDEWIRE + ["--conduit", "g.toml"], "ok",
+                       f"a guidewire in an arc of clearance 0.001 ({cmd[0]}): within 1e-3 of it of the wall",
+                       setup=arc, setup_desc="g.toml: arc:0.6, clearance 0.001", must_not_say="warning",
+                       check=_solve_accurate(min_gap=-1e-6) if cmd[0] == "solve" else None, timeout=180))
+    # -- 5, 11, 16. the Python API's edges: a TypeError or ValueError in one line, or the right answer
+    for call, exp, say, why in API_EDGES:
+        P.append(Probe("issue22:api-edges", ["python", "-c", call], exp, why, python=call, must_say=say,
+                       files=("F.h5", "X.h5"), must_not_say="solve_equilibrium", timeout=120))
+    P.append(Probe("issue22:api-edges", ["critical", "--T", "1e20"], "ok", "no critical twist where the closed "
+                   "form has none", must_say="none below"))
+    # -- 6. solve prints what to trust
+    P.append(Probe("issue22:defect-line", ["solve", "--gamma", "1", "--phi", "10"], "ok",
+                   "no unexplained defect beside the error", check=_no_defect_line))
+    # -- 7. the fold inside the window whose branch straddles --phi-max
+    P.append(Probe("issue22:window-edge", ["diagram", "--gamma", "5", "--phi-max", "40", "--out", "o.h5", "--quiet"],
+                   "ok", "Gamma = 5: the 3 -> 4 fold at 39.754 (the branch from the last interval)",
+                   check=_fold_check(LAGRANGE["G5"], None, 1.0, None, (3, 4), tol=1e-6), timeout=400))
+    # -- 8. a tighter guard: the fold still to --fold-error
+    for guard in ("1e-8", "1e-6"):
+        P.append(Probe("issue22:tight-guard", ["trace", "--gamma", "1", "--from-straight", "25.778", "--max-error",
+                                               guard, "--stretch-max", "0.0863", "--out", "o.h5", "--quiet"], "ok",
+                       f"the 2 -> 3 fold with --max-error {guard}: within --fold-error 1e-9 of the reference",
+                       check=_fold_check(LAGRANGE["S"], LAGRANGE["TS"], 1.0, None, (2, 3), tol=1e-9), timeout=180))
+    # -- 15. warnings: the library's cause, on the CLI's warning line
+    P.append(Probe("issue22:warnings", ["trace", "--T", "10", "--w", "0", "--phi-max", "20", "--out", "o.h5",
+                                        "--quiet"], "ok", "the axisymmetric rod: the library's cause, printed",
+                   check=_warning_with_cause("cross in pairs"), timeout=180))
+    # -- 16. names: F<j> for fold-curve, the parameter's name in a trace in T, one line for a huge helix
+    P.append(Probe("issue22:names", ["fold-curve", "F.h5:F1", "--range", "0.9", "1.1", "--max-steps", "3", "--out",
+                                     "o.h5", "--quiet"], "ok", "F1 as everywhere else", files=("F.h5",)))
+    P.append(Probe("issue22:names", ["trace", "--start", "X.h5:3", "--param", "T", "--range", "5", "20",
+                                     "--max-steps", "30", "--out", "o.h5"], "ok",
+                   "a trace in T says T (progress and stop message), not Phi or p", files=("X.h5",),
+                   check=_progress_names("T"), timeout=120))
+    P.append(Probe("issue22:names", ["solve", "--gamma", "1", "--phi", "1", "--reference", "helix:1e300,1"], "err",
+                   "a helix too large to represent: one line, no errno tuple", must_say="too large",
+                   must_not_say="Errno"))
+    # -- 17. plot and export: the contact columns the file holds
+    for y in ("side_force", "min_gap"):
+        P.append(Probe("issue22:columns", ["plot", "P.h5", "--y", y, "-o", "p.png"], "ok",
+                       f"plot --y {y} of a conduit trace", files=("P.h5",)))
+    P.append(Probe("issue22:columns", ["export", "P.h5", "--point", "-1", "-o", "e.csv"], "ok",
+                   "export of a conduit point: its contact columns", files=("P.h5",),
+                   check=_csv_columns("S", "axial_force", "torque", "pressure", "gap", "in_contact")))
+    # -- 19. Dask: a scheduler that is not there is one line; diagrams in parallel
+    P.append(Probe("issue22:dask", ["sweep", "--gamma", "1", "--stretch-max", "0.02", "--max-steps", "8",
+                                    "--scheduler", "tcp://127.0.0.1:9", "--out", "sd", "--quiet"], "err",
+                   "sweep --scheduler with no scheduler at the address", timeout=120))
+    P.append(Probe("issue22:dask", ["diagram", "--gamma", "1", "--phi-max", "15", "--jobs", "2", "--out", "o.h5",
+                                    "--quiet"], "ok", "diagram --jobs 2",
+                   check=_fold_check(LAGRANGE["F1"], LAGRANGE["T1"], 1.0, (0, 1), (0, 1)), timeout=300))
+    return P
+
+
+# --------------------------------------------------------------------------
 # Damaged, foreign and hand-edited files
 # --------------------------------------------------------------------------
 MAGIC_LEN = 20      # rodcont's header: a 20-byte magic string, version, length, checksum, in a 512-byte user block
@@ -1779,7 +2109,8 @@ def run_probe(p: Probe, workdir: str, env: dict, mem_limit: int, keep: bool) -> 
         limits.append(f"ulimit -S -f {max(1, p.fsize // 1024)}")
     if p.stdout_path == "CLOSED":
         limits.append("exec 1>&-")
-    cmd = ["bash", "-c", "; ".join(limits) + '; exec "$@"', "bash", sys.executable, CLI] + list(p.args)
+    target = [sys.executable, "-c", _api_code(p.python)] if p.python else [sys.executable, CLI] + list(p.args)
+    cmd = ["bash", "-c", "; ".join(limits) + '; exec "$@"', "bash"] + target
     kw = dict(cwd=d, env=env, stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     stdout_f = None
     if p.stdout_path == "BROKENPIPE":      # a pipe whose reader has already gone (`rodcont ... | true`)
@@ -1920,6 +2251,15 @@ def judge(res: Result, before: dict, after: dict, env: dict) -> None:
         pass  # already reported
     if p.must_say and p.must_say not in res.stdout + res.stderr:
         problems.append(f"DID NOT SAY {p.must_say!r}")
+    if p.must_not_say and p.must_not_say in res.stdout + res.stderr:
+        problems.append(f"SAID {p.must_not_say!r}")
+    if p.check is not None and rc is not None and rc >= 0:
+        try:
+            wrong = p.check(res)
+        except Exception as exc:  # noqa: BLE001 - a check that cannot read the answer reports it
+            wrong = f"the check could not read the answer ({type(exc).__name__}: {exc})"
+        if wrong:
+            problems.append(f"WRONG ANSWER: {wrong}")
     # files
     new = sorted(set(after) - set(before))
     gone = sorted(set(before) - set(after))
@@ -1991,6 +2331,7 @@ def all_probes(fixdir: str, rng: random.Random, is_root: bool, n_flips: int, env
     P += make_edits(fixdir, n)
     P += text_option_probes()
     P += safety_probes()
+    P += issue22_probes()
     P += discovered_probes(discover_options(env, fixdir))
     # base lines must work: otherwise every 'any' probe tells nothing
     for cmd, a in BASE.items():

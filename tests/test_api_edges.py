@@ -106,3 +106,188 @@ def test_a_helix_too_large_to_represent_is_one_line(reference, capsys):
     assert code == 2 and err.count("\n") == 1
     assert err.startswith("rodcont: error: --reference ") and "too large to represent" in err
     assert "Errno" not in err and "(34," not in err
+
+
+# --------------------------------------------------------------------------
+# Found by calling every name of rodcont.__all__ with one wrong-typed argument at a time: each raised an
+# AttributeError, a message naming no argument (``could not convert string to float: 'x'``) or nothing at all
+# --------------------------------------------------------------------------
+@pytest.mark.parametrize("gammas", ["1", 1.0, None, b"1", {"a": 1.0}])
+def test_sweep_refuses_gammas_that_are_not_a_sequence_of_numbers(gammas, tmp_path):
+    with pytest.raises(TypeError, match="gammas must be a sequence of Gamma values"):
+        rodcont.sweep(gammas, out_dir=str(tmp_path / "s"), max_steps=2, plot=False, jobs=1)
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("kwargs,error,message", [
+    (dict(out_dir=3), TypeError, "out_dir must be a directory name, got 3"),
+    (dict(out_dir=None), TypeError, "out_dir must be a directory name"),
+    (dict(N="abc"), TypeError, "N must be an integer"),
+    (dict(N=0), ValueError, r"N \(number of subintervals\)"),
+    (dict(k=[5]), TypeError, "k must be an integer"),
+    (dict(executor="abc"), TypeError, "executor must be a concurrent.futures.Executor"),
+])
+def test_sweep_refuses_a_wrong_directory_mesh_or_executor_before_any_job(kwargs, error, message, tmp_path):
+    kwargs = dict(dict(out_dir=str(tmp_path / "s")), **kwargs)
+    with pytest.raises(error, match=message):
+        rodcont.sweep([1.0], max_steps=2, plot=False, jobs=1, **kwargs)
+    assert not (tmp_path / "s").exists()
+
+
+def test_sweep_into_a_file_is_refused_in_one_sentence(tmp_path):
+    f = tmp_path / "notes.txt"
+    f.write_text("mine\n")
+    with pytest.raises(ValueError, match="out_dir .*notes.txt exists and is not a directory"):
+        rodcont.sweep([1.0], out_dir=str(f), max_steps=2, plot=False, jobs=1)
+    assert f.read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("direction", ["x", "0,0,-1", {"x": 1}, object(), b"z"])
+def test_a_weight_direction_that_is_not_a_vector_names_it(direction):
+    with pytest.raises(TypeError, match=r"weight_direction must be a 3-vector of numbers \(X, Y, Z\)"):
+        rodcont.RodParameters(weight_direction=direction)
+    with pytest.raises(ValueError, match="weight_direction must be a non-zero 3-vector"):
+        rodcont.RodParameters(weight_direction=(0, 1))
+    assert rodcont.RodParameters(weight_direction=[0, 0, -2]).weight_direction == (0.0, 0.0, -1.0)
+
+
+@pytest.mark.parametrize("breakpoints", ["abc", "0 0.5 1", {"a": 1}, b"x", object()])
+def test_trace_breakpoints_that_are_not_numbers_are_named(breakpoints):
+    with pytest.raises(TypeError, match=r"breakpoints must be a sequence of numbers \(the mesh's\)"):
+        rodcont.trace(1.0, breakpoints=breakpoints, max_steps=2)
+
+
+def test_trace_refuses_meta_settings_and_resume_of_the_wrong_type():
+    for kwargs, message in [(dict(meta=3), "meta must be a dict, got 3"),
+                            (dict(meta=[("a", 1)]), "meta must be a dict"),
+                            (dict(settings={"ds": 0.1}), "settings must be a rodcont.ContinuationSettings"),
+                            (dict(resume="g1.h5"), r"resume must be a rodcont.Branch .*rodcont.load_branch\(out\)")]:
+        with pytest.raises(TypeError, match=message):
+            rodcont.trace(1.0, max_steps=2, **kwargs)
+
+
+@pytest.mark.parametrize("out", [3, ["g.h5"], 1.5])
+def test_an_output_that_is_not_a_file_name_is_a_type_error(out, bratu_start):
+    with pytest.raises(TypeError, match="out must be a file name"):
+        rodcont.trace(1.0, max_steps=2, out=out)
+    with pytest.raises(TypeError, match="out must be a file name"):
+        rodcont.continue_bvp(BRATU, "lam", bratu_start, (0.0, 0.5), out=out)
+
+
+def test_an_output_may_be_a_path(tmp_path):
+    br = rodcont.trace(1.0, max_steps=2, out=tmp_path / "g.h5")
+    assert len(rodcont.load_branch(str(tmp_path / "g.h5"))) == len(br) == 3
+
+
+def test_diagram_refuses_wrong_types_of_its_arguments():
+    for kwargs, error, message in [
+            (dict(deflate_at=3.0), TypeError, "deflate_at must be a sequence of numbers, got 3.0"),
+            (dict(deflate_at="12"), TypeError, "deflate_at must be a sequence of numbers"),
+            (dict(deflate_at=[float("nan")]), ValueError, "deflate_at must be a finite number"),
+            (dict(callback=3), TypeError, "callback must be a function of the point, got 3"),
+            (dict(progress="print"), TypeError, "progress must be a function of a line of text"),
+            (dict(meta=[1]), TypeError, "meta must be a dict"),
+            (dict(resumed="D.h5"), TypeError, "resumed must be a sequence of DiagramBranch"),
+            (dict(resumed=[1, 2]), TypeError, "resumed must be a sequence of DiagramBranch")]:
+        with pytest.raises(error, match=message):
+            rodcont.diagram(1.0, phi_max=12.0, max_steps=3, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def fold_branch():
+    return rodcont.trace(1.0, stretch_max=0.2)
+
+
+def test_fold_curve_refuses_wrong_types_of_its_arguments(fold_branch):
+    for kwargs, error, message in [
+            (dict(forced=1.0), TypeError, "forced must be a sequence of numbers, got 1.0"),
+            (dict(forced=None), TypeError, "forced must be a sequence of numbers"),
+            (dict(callback="x"), TypeError, "callback must be a function of the point"),
+            (dict(min_alignment="abc"), TypeError, "min_alignment must be a number"),
+            (dict(min_alignment=float("nan")), ValueError, "min_alignment must be a finite number"),
+            (dict(min_alignment=2.0), ValueError, r"min_alignment must be in \[0, 1\)")]:
+        with pytest.raises(error, match=message):
+            rodcont.fold_curve(fold_branch, 0, "gamma", 0.95, 1.05, max_steps=2, **kwargs)
+
+
+@pytest.mark.parametrize("direction", ["up", None, [1], 0, 2, 0.5, True, float("nan")])
+def test_continue_bvp_direction_is_plus_or_minus_one(direction, bratu_start):
+    with pytest.raises(ValueError, match=r"direction must be \+1 or -1, got"):
+        rodcont.continue_bvp(BRATU, "lam", bratu_start, (0.0, 0.5), direction=direction)
+
+
+def test_rod_system_refuses_a_rod_or_loads_that_are_not_numbers():
+    for kwargs, message in [(dict(rod="rod", gamma=1.0), "rod must be a RodParameters, got 'rod'"),
+                            (dict(rod=None, gamma=1.0), "rod must be a RodParameters"),
+                            (dict(gamma="1"), "gamma must be a number, got '1'"),
+                            (dict(gamma=1.0, phi_L=[2.0]), r"phi_L must be a number, got \[2.0\]"),
+                            (dict(T=b"10"), "T must be a number")]:
+        kwargs = dict(dict(rod=rodcont.RodParameters()), **kwargs)
+        with pytest.raises(TypeError, match=message):
+            rodcont.RodSystem(**kwargs)
+
+
+def test_a_straight_reference_names_what_is_wrong_in_one_line():
+    for kwargs, error, message in [(dict(length="abc"), TypeError, "reference length L must be a number"),
+                                   (dict(K1="abc"), TypeError, "K1 must be a 3-vector of numbers"),
+                                   (dict(K1=(1,)), ValueError, "K1 must be a 3-vector of finite numbers"),
+                                   (dict(K2=(0, 0, float("inf"))), ValueError, "K2 must be a 3-vector of finite"),
+                                   (dict(origin={"x": 0}), TypeError, "origin must be a 3-vector of numbers")]:
+        with pytest.raises(error, match=message) as exc:
+            rodcont.StraightReference(**kwargs)
+        assert "\n" not in str(exc.value)
+
+
+# --------------------------------------------------------------------------
+# rodcont.continuation: the module and the function re-exported under its name were two objects, which one
+# ``rodcont.continuation`` (and ``import rodcont.continuation as m``) gave depending on what was imported first
+# --------------------------------------------------------------------------
+_ORDERS = ["import rodcont; f = rodcont.continuation; import rodcont.continuation as m",
+           "import rodcont.continuation as m; import rodcont; f = rodcont.continuation",
+           "import rodcont; rodcont.trace; rodcont.Tracker; import rodcont.continuation as m; f = rodcont.continuation",
+           "from rodcont import continuation as f; import rodcont.continuation as m"]
+_CHECK = """
+import types, numpy as np, scipy.sparse as sp, rodcont
+from rodcont.continuation import continuation as function
+class Line:  # x = p
+    def residual(self, x, p): return x - p
+    def tangent(self, x, p): return sp.identity(1, format="csc"), np.array([-1.0])
+assert m is f is rodcont.continuation and isinstance(m, types.ModuleType), (m, f)
+assert m.Tracker is rodcont.Tracker and callable(function) and not isinstance(function, types.ModuleType)
+res = f(Line(), np.array([0.0]), 0.0, m.ContinuationSettings(ds=0.1, ds_max=0.1, max_steps=4))
+assert str(res.status) == "max_steps" and abs(res.table["p"][-1] - 0.4) < 1e-12, res.table["p"]
+"""
+
+
+@pytest.mark.parametrize("order", _ORDERS)
+def test_rodcont_continuation_is_the_module_and_calls_the_function_whatever_came_first(order):
+    import os
+    import subprocess
+    import sys
+    src = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "src")
+    r = subprocess.run([sys.executable, "-c", order + "\n" + _CHECK], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, PYTHONPATH=src))
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("name", ["newton_tol", "fold_tol", "locate_tol", "newton_max_iter", "chord_max_iter",
+                                  "locate_max_iter"])
+def test_continuation_settings_name_the_tolerance_or_limit_that_is_wrong(name):
+    with pytest.raises(ValueError, match=name):
+        rodcont.ContinuationSettings(**{name: -1})
+
+
+def test_loads_must_be_a_list_of_loads():
+    from rodcont.loads import Weight
+    for loads in (3, Weight()):
+        with pytest.raises(TypeError, match="loads must be a list of rodcont.loads.DistributedLoad"):
+            rodcont.EulerianRod(loads=loads)
+    with pytest.raises(TypeError, match="a load must be a rodcont.loads.DistributedLoad, got 'w'"):
+        rodcont.EulerianRod(loads="w")
+    assert len(rodcont.EulerianRod(loads=[Weight()]).loads) == 1
+
+
+@pytest.mark.parametrize("k", ["abc", "5", 5.0, 0, 8, True])
+def test_a_rod_system_names_a_wrong_number_of_gauss_points(k):
+    with pytest.raises(ValueError, match=r"k \(Gauss points per subinterval\) must be an integer in 1..7"):
+        rodcont.RodSystem(rodcont.RodParameters(), gamma=1.0, k=k)

@@ -376,32 +376,55 @@ def short(v: float) -> str:
     return f"{m}e{int(e)}"
 
 
+def stated(flat: str, phrase: str) -> list:
+    """The errors the README states where ``phrase`` reads NUMBER (``to NUMBER``: ``to 9.9e-14``), in order."""
+    m = re.search(re.escape(" ".join(phrase.split())).replace("NUMBER", r"(\d\.\de-\d+)"), flat)
+    assert m, phrase
+    return [float(v) for v in m.groups()]
+
+
+def rounding_level(quoted: float, actual: float, tolerance: float, name: str) -> None:
+    """An error at rounding level as the README quotes it (``9.9e-14``): the code's is below the tolerance the
+    README states for it, and of the quoted size (within a factor 10: the last digits are the machine's)."""
+    assert quoted <= tolerance, (name, quoted, tolerance)
+    assert actual <= tolerance and quoted / 10 <= actual <= 10 * quoted, (name, actual, quoted)
+
+
 def test_readme_errors_are_the_examples_errors(examples):
-    """The errors the section states, from the printed values and the closed forms (and the fixed-mesh fold)."""
+    """The errors the section states, from the printed values and the closed forms: those at rounding level
+    (the examples' against the closed forms) below the tolerance the README gives and of the size it quotes;
+    the fixed-mesh fold's (a discretisation error) and the mesh's facts as printed."""
     text = readme_section()
+    flat = " ".join(text.split())
     b, t, e = (examples[n][0] for n in ("bratu", "troesch", "elastica"))
     fold = ref.bratu_fold()
     start = bvp.solve(BRATU, {"lam": 0.0}, N=4, max_error=1.0)
     fixed = rodcont.continue_bvp(BRATU, "lam", start, (0.0, 3.6), adapt=False, max_error=1.0, ds=0.1, ds_max=0.5,
                                  max_steps=20).folds["lam"][0]
     s = ref.troesch_slope(10.0)
-    stated = {
-        f"`λ* = 3.51383071912516` (closed form `λ* = 8 (y² − 1)`, `y tanh y = 1`) to "
-        f"{short(abs(float(b['fold_lambda']) - fold['lam']))}": fold["lam"] == 3.513830719125161,
-        f"`u(1/2)`\nto {short(abs(float(b['fold_u_mid']) - fold['u_max']))}": True,
-        f"`u'(0)` (4 exactly there) to {short(abs(float(b['fold_slope_at_0']) - 4))}": True,
-        f"on those 4 held fixed (`adapt=False`) the fold is {short(abs(fixed - fold['lam']))} off": True,
-        "to 21 at the fold": b["fold_N"] == "21",
-        f"`u'(0)` at `λ = 10` to {short(abs(float(t['slope_at_0']) / s - 1))} relative": True,
-        f"graded from {t['h_max']} to {t['h_min']} into the layer": True,
-        f"against the closed form `P = (2 K(m))²`, `δ = 2 − 2 E(m)/K(m)`: "
-        f"{short(abs(float(e['load_at_delta_1']) - ref.elastica_load(1.0)))} "
-        f"({short(abs(float(e['load_at_delta_1']) / ref.elastica_load(1.0) - 1))} relative) and\n"
-        f"{short(abs(float(e['theta_0_at_delta_1']) - ref.elastica_theta0(1.0)))} for the end angle": True,
-    }
-    flat = " ".join(text.split())
-    for phrase, ok in stated.items():
-        assert ok and " ".join(phrase.split()) in flat, phrase
+    for phrase in ("held below `max_error = 1e-10` and the fold's below `fold_error = 1e-11`",
+                   "(`examples/bvp_troesch.py`, `max_error = 1e-8`", "(1e-8 relative)"):
+        assert " ".join(phrase.split()) in flat, phrase
+    assert fold["lam"] == 3.513830719125161
+    (q,) = stated(flat, "`λ* = 3.51383071912516` (closed form `λ* = 8 (y² − 1)`, `y tanh y = 1`) to NUMBER;")
+    rounding_level(q, abs(float(b["fold_lambda"]) - fold["lam"]), 1e-11, "fold lambda")
+    (q,) = stated(flat, "`u(1/2)` to NUMBER,")
+    rounding_level(q, abs(float(b["fold_u_mid"]) - fold["u_max"]), 1e-11, "fold u(1/2)")
+    (q,) = stated(flat, "`u'(0)` (4 exactly there) to NUMBER.")
+    rounding_level(q, abs(float(b["fold_slope_at_0"]) - 4), 1e-11, "fold u'(0)")
+    (q,) = stated(flat, "`u'(0)` at `λ = 10` to NUMBER relative")
+    rounding_level(q, abs(float(t["slope_at_0"]) / s - 1), 1e-8, "Troesch u'(0), relative")
+    q_load, q_rel, q_angle = stated(flat, "`δ = 2 − 2 E(m)/K(m)`: NUMBER (NUMBER relative) and NUMBER for the "
+                                          "end angle")
+    load = float(e["load_at_delta_1"])
+    rounding_level(q_load, abs(load - ref.elastica_load(1.0)), 1e-10, "elastica load")
+    rounding_level(q_rel, abs(load / ref.elastica_load(1.0) - 1), 1e-10, "elastica load, relative")
+    rounding_level(q_angle, abs(float(e["theta_0_at_delta_1"]) - ref.elastica_theta0(1.0)), 1e-10, "end angle")
+    exact = [f"on those 4 held fixed (`adapt=False`) the fold is {short(abs(fixed - fold['lam']))} off",
+             "to 21 at the fold", f"graded from {t['h_max']} to {t['h_min']} into the layer"]
+    assert b["fold_N"] == "21"
+    for phrase in exact:
+        assert " ".join(phrase.split()) in flat, phrase
     # the layer's facts: u'(1) = 148 at lam = 10, the singularity 1.4e-3 beyond x = 1 (x(u) = int du / u')
     from scipy.integrate import quad
     assert round(float(ref.troesch_solution(np.array([1.0]), 10.0)[1][0])) == 148 and "`u'(1) = 148`" in text

@@ -11,6 +11,9 @@ collocation at Gauss points, Keller pseudo-arclength continuation.
     >>> sol = rodcont.bvp.solve(problem, {"lam": 0.0})       # your own BVProblem, solved
     >>> res = rodcont.continue_bvp(problem, "lam", sol, (0, 4))  # and continued, with its folds
 
+``rodcont.continuation`` is the tracker's module (``rodcont.continuation.Tracker``) and, called, its
+function ``continuation(problem, x0, p0, settings)``: one object, whatever is imported first.
+
 Names are imported on first use, so ``import rodcont`` (and the command
 line) costs only what is used.
 """
@@ -21,7 +24,7 @@ _API = {
     "RodParameters": "rod", "EulerianRod": "rod", "StraightReference": "rod", "ReferenceCurve": "rod",
     "BVProblem": "collocation", "Collocation": "collocation", "NewtonResult": "linalg",
     "ContinuationSettings": "continuation", "Tracker": "continuation", "Point": "continuation",
-    "Event": "continuation", "continuation": "continuation",
+    "Event": "continuation", "continuation": ("continuation", None),  # the module, callable as its function
     "ContinuationResult": "result", "Status": "result", "SpecialPoint": "result", "Table": "result",
     "AdaptiveContinuation": "adaptive", "AdaptiveSettings": "adaptive", "adaptive_continuation": "adaptive",
     "solve": ("drivers.solve", "solve_equilibrium"), "Equilibrium": "drivers.solve",

@@ -175,8 +175,12 @@ def check_regular_target(path: str, what: str = "--out") -> None:
 def check_writable(path: str, inputs=(), what: str = "--out") -> str:
     """An output path that can be written: a name, not an input (as a file, through any link), a
     regular file or nothing, in a directory that exists and is writable. Returns the path; raises
-    ``BranchFileError``. (An existing file is not refused here: see :func:`check_output`.)"""
-    if not isinstance(path, str) or not path.strip():
+    ``BranchFileError`` (``TypeError`` for what is not a name; a ``pathlib.Path`` is one, returned as str).
+    (An existing file is not refused here: see :func:`check_output`.)"""
+    path = os.fspath(path) if isinstance(path, os.PathLike) else path
+    if not isinstance(path, str):
+        raise TypeError(f"{what} must be a file name, got {path!r}")
+    if not path.strip():
         raise BranchFileError(f"{what} needs a file name")
     for src in inputs:
         if src is not None and same_file(path, src):
@@ -196,7 +200,7 @@ def check_writable(path: str, inputs=(), what: str = "--out") -> str:
 
 def check_output(path: str, inputs=(), overwrite: bool = False, what: str = "--out") -> str:
     """:func:`check_writable`, and an existing file only with ``overwrite`` (checked before any work)."""
-    check_writable(path, inputs, what)
+    path = check_writable(path, inputs, what)
     if os.path.lexists(path) and not overwrite:
         raise BranchFileError(f"{path} exists: choose another {what} or add --overwrite to replace it")
     return path

@@ -545,7 +545,9 @@ def _settings(p_range, direction, options: dict) -> tuple[ContinuationSettings, 
         if not isinstance(p_range, (list, tuple)) or len(p_range) != 2:
             raise TypeError(f"p_range must be a pair (lo, hi), got {p_range!r}")
         cont.update(p_min=float(p_range[0]), p_max=float(p_range[1]))
-    cont["direction"] = int(direction) if not isinstance(direction, bool) else direction
+    if not _is_number(direction) or direction not in (1, -1):  # 1.0 is 1; "1", True and 0.5 are not
+        raise ValueError(f"direction must be +1 or -1, got {direction!r}")
+    cont["direction"] = int(direction)
     return ContinuationSettings(**cont), AdaptiveSettings(**adapt)
 
 
@@ -629,7 +631,7 @@ class _Recorder(ResultRecorder):
         self.thin, self.writer, self.group = int(store_every), None, None
         if out is not None:
             from .branchfile import BranchWriter, check_output
-            check_output(out, overwrite=overwrite, what="out")
+            out = check_output(out, overwrite=overwrite, what="out")
             self.writer = BranchWriter(out, attrs, store_every=self.thin)
             self.group = self.writer.groups["/"] = _Group(self.writer.f, self.thin)
             result.path = out

@@ -191,9 +191,9 @@ class ContinuationSettings:
             (self.max_steps >= 1, "max_steps must be >= 1"),
             (self.p_min < self.p_max, "p_min must be below p_max"),
             (0 < self.theta < 1, "theta must be in (0, 1)"),
-            (self.newton_tol > 0 and self.fold_tol > 0 and self.locate_tol > 0, "tolerances must be positive"),
+            (self.newton_tol > 0 and self.fold_tol > 0 and self.locate_tol > 0, "newton_tol, fold_tol and locate_tol must be positive"),
             (self.newton_max_iter >= 1 and self.chord_max_iter >= 1 and self.locate_max_iter >= 1,
-             "iteration limits must be >= 1"),
+             "newton_max_iter, chord_max_iter and locate_max_iter must be >= 1"),
             (self.grow >= 1 and 0 < self.shrink < 1, "need grow >= 1 and 0 < shrink < 1"),
             (0 < self.max_angle < math.pi / 2 and 0 < self.target_angle <= self.max_angle,
              "need 0 < target_angle <= max_angle < pi/2"),
@@ -1094,3 +1094,15 @@ def continuation(problem, x0, p0, settings: ContinuationSettings | None = None, 
     result.set_status(tr.stop.status if tr.stop is not None else Status.MAX_STEPS, tr.stop_reason)
     result.steps, result.newton_iterations = tr.steps, tr.newton_iterations
     return result
+
+
+class _CallableModule(type(math)):
+    """This module, callable as its function :func:`continuation`: the package re-exports the function under
+    the module's own name, so ``rodcont.continuation`` is one object whatever was imported first (the module,
+    ``import rodcont.continuation as m``, and the function, ``rodcont.continuation(problem, x0, p0)``)."""
+
+    def __call__(self, *args, **kwargs) -> ContinuationResult:
+        return continuation(*args, **kwargs)
+
+
+__import__("sys").modules[__name__].__class__ = _CallableModule

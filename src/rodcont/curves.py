@@ -389,16 +389,16 @@ class Straight(ReferenceCurve):
     spec = "straight"
 
     def __init__(self, length: float = 1.0, K1=(0.0, 1.0, 0.0), K2=(0.0, 0.0, 1.0), origin=(0.0, 0.0, 0.0)):
+        if isinstance(length, bool) or not isinstance(length, (int, float, np.integer, np.floating)):
+            raise TypeError(f"reference length L must be a number, got {length!r}")
         if not (np.isfinite(length) and length > 0):
             raise ValueError(f"reference length L must be positive, got {length}")
         self.length = float(length)
         self.span = self.length
-        self.K1 = np.asarray(K1, float)
-        self.K2 = np.asarray(K2, float)
+        self.K1, self.K2, self.origin = (_vector(name, v) for name, v in (("K1", K1), ("K2", K2), ("origin", origin)))
         self.K3 = np.cross(self.K1, self.K2)
         if not np.allclose([self.K1 @ self.K1, self.K2 @ self.K2, self.K1 @ self.K2], [1, 1, 0], atol=1e-14):
             raise ValueError("K1, K2 must be orthonormal")
-        self.origin = np.asarray(origin, float)
         self._end_twist = 0.0
 
     def jet(self, S) -> CurveJet:
@@ -421,6 +421,19 @@ class Straight(ReferenceCurve):
 
 
 StraightReference = Straight
+
+
+def _vector(name: str, value) -> np.ndarray:
+    """``value`` as a 3-vector of finite floats; a ``TypeError``/``ValueError`` naming ``name`` otherwise."""
+    try:
+        v = None if isinstance(value, (str, bytes, dict)) else np.asarray(value, float)
+    except (TypeError, ValueError):
+        v = None
+    if v is None:
+        raise TypeError(f"{name} must be a 3-vector of numbers, got {value!r}")
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be a 3-vector of finite numbers, got {value!r}")
+    return v
 
 
 # --------------------------------------------------------------------------

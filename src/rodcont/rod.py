@@ -227,7 +227,7 @@ class RodParameters:
                 raise ValueError(f"{name} = {v!r} is outside the range rodcont computes with (1e-100 .. 1e100): "
                                  f"change units")
             setattr(self, name, float(v))
-        g = np.asarray(self.weight_direction, float)
+        g = _vector3("weight_direction", self.weight_direction)
         if g.shape != (3,) or not np.isfinite(g).all() or not np.any(g != 0):
             raise ValueError("weight_direction must be a non-zero 3-vector of finite numbers")
         g = g / np.max(np.abs(g))  # scaled first: a huge vector has a finite norm
@@ -373,6 +373,8 @@ class EulerianRod:
             from .contact import Wall
             if not isinstance(wall, Wall):
                 raise TypeError(f"wall must be a rodcont.contact.Wall, got {wall!r}")
+        if isinstance(loads, DistributedLoad) or not (loads is None or hasattr(loads, "__iter__")):
+            raise TypeError(f"loads must be a list of rodcont.loads.DistributedLoad, got {loads!r}")
         loads = [Weight()] if loads is None else list(loads)
         for load in loads:
             if not isinstance(load, DistributedLoad):
@@ -901,7 +903,12 @@ class EulerianRod:
         """A given mesh spans the domain ``[0, curve.length]`` and holds every station (a well's, a clearance
         table's): on another span it would solve another rod without a word (breakpoints ``0 .. 0.9`` of a span
         of 1 put the Gamma = 1 fold at 12.824 instead of 13.09999)."""
-        b = np.asarray(breakpoints, float)
+        if isinstance(breakpoints, (str, bytes, dict)):
+            raise TypeError(f"breakpoints must be a sequence of numbers (the mesh's), got {breakpoints!r}")
+        try:
+            b = np.asarray(breakpoints, float)
+        except (TypeError, ValueError):
+            raise TypeError(f"breakpoints must be a sequence of numbers (the mesh's), got {breakpoints!r}") from None
         if b.ndim != 1 or b.size < 2 or not np.all(np.isfinite(b)):
             raise ValueError("breakpoints must be a strictly increasing sequence of at least 2 finite values")
         check_mesh_size(b.size - 1, k)
@@ -1173,10 +1180,22 @@ class _Outputs:
 BYTES_PER_UNKNOWN = 6500.0
 
 
+def _vector3(name: str, value) -> np.ndarray:
+    """``value`` as a float array; a ``TypeError`` naming ``name`` when it is not a vector of numbers."""
+    if isinstance(value, (str, bytes, dict)):
+        raise TypeError(f"{name} must be a 3-vector of numbers (X, Y, Z), got {value!r}")
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a 3-vector of numbers (X, Y, Z), got {value!r}") from None
+
+
 def check_mesh_size(N: int, k: int) -> None:
     """Refuse a mesh the machine cannot hold (``ValueError``, one line): ``N`` subintervals of ``k`` Gauss points
     need about ``BYTES_PER_UNKNOWN (k + 3)/8`` bytes for each of their ``6 N k + 11`` unknowns (``N = 10^9`` would
     take petabytes; ``critical_twists(N_fine=10^7)`` ran to 10 GB before it was stopped)."""
+    if isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and 1 <= k <= 7):
+        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k!r}")
     need = BYTES_PER_UNKNOWN * (int(k) + 3) / 8.0 * (6.0 * int(N) * int(k) + 11.0)
     have = _physical_memory()
     if need > have:

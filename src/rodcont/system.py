@@ -39,6 +39,26 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     return int(v) if integer else v
 
 
+def check_callable(name: str, function, what: str = "a function") -> None:
+    """``None`` or a callable; otherwise a ``TypeError`` naming ``name``."""
+    if function is not None and not callable(function):
+        raise TypeError(f"{name} must be {what}, got {function!r}")
+
+
+def check_numbers(name: str, values) -> tuple:
+    """A sequence of numbers as a tuple of floats; a single number or a string is a ``TypeError`` naming ``name``."""
+    if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__iter__"):
+        raise TypeError(f"{name} must be a sequence of numbers, got {values!r}")
+    return tuple(check_number(name, v) for v in values)
+
+
+def check_mapping(name: str, value) -> None:
+    """``None`` or a mapping (a dict); otherwise a ``TypeError`` naming ``name``."""
+    from collections.abc import Mapping
+    if value is not None and not isinstance(value, Mapping):
+        raise TypeError(f"{name} must be a dict, got {value!r}")
+
+
 class RodSystem:
     """The discretised rod as a one-parameter problem ``F(x, q) = 0`` for the tracker.
 
@@ -66,6 +86,12 @@ class RodSystem:
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
                  curve=None, wall=None, ends=None, loads=None, sections=None):
         from .ends import RodEnds, UnstressedLength
+        if not isinstance(rod, RodParameters):
+            raise TypeError(f"rod must be a RodParameters, got {rod!r}")
+        for name, v in (("gamma", gamma), ("phi_L", phi_L), ("T", T)):
+            if v is not None and (isinstance(v, bool) or not np.isrealobj(v) or np.ndim(v) != 0
+                                  or not isinstance(v, (int, float, np.number, np.ndarray))):
+                raise TypeError(f"{name} must be a number, got {v!r}")
         ends = RodEnds() if ends is None else ends
         if not isinstance(ends, RodEnds):
             raise TypeError(f"ends must be a rodcont.ends.RodEnds, got {ends!r}")

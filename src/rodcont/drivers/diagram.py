@@ -44,7 +44,7 @@ from ..continuation import Kind, Point
 from ..linalg import LU, SingularMatrix, max_norm
 from ..result import Status, Table
 from ..rod import RodParameters
-from ..system import RodSystem, check_number
+from ..system import RodSystem, check_callable, check_mapping, check_number, check_numbers
 from .solve import check_tension
 from .trace import Recorder, TraceError, TraceOptions, _mesh_group, file_meta, run, straight_seed
 
@@ -347,7 +347,15 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
         ends = trace_ends(l0=l0)
     N = check_number("N", N, integer=True)
     k = check_number("k", k, integer=True)
-    deflate_at = tuple(check_number("deflate", v) for v in deflate_at)
+    deflate_at = check_numbers("deflate_at", deflate_at)
+    check_callable("callback", callback, "a function of the point")
+    check_callable("progress", progress, "a function of a line of text")
+    check_mapping("meta", meta)
+    given = resumed
+    resumed = list(resumed) if hasattr(resumed, "__iter__") and not isinstance(resumed, (str, bytes)) else [None]
+    if not all(isinstance(db, DiagramBranch) for db in resumed):
+        raise TypeError(f"resumed must be a sequence of DiagramBranch (the complete branches of the interrupted "
+                        f"run), got {given!r}")
     if deflate_at and ends is not None:
         raise ValueError("deflation (--deflate) works with the tension imposed, not under length control (--l0)")
     store_every = check_number("store_every", store_every, integer=True)
@@ -366,7 +374,7 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     writer = None
     if out is not None:
         from ..branchfile import BranchWriter, check_output
-        check_output(out, overwrite=overwrite)
+        out = check_output(out, overwrite=overwrite)
         # a resumed file is replaced only once it holds its complete branches again
         writer = BranchWriter(out, dg.attrs, store_every=store_every,
                               min_points=sum(len(db.branch) for db in dg.resumed) or 1)

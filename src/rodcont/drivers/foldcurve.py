@@ -25,7 +25,7 @@ from ..branch import Branch
 from ..continuation import ContinuationSettings, Event, Kind, Point
 from ..linalg import LU, bordered
 from ..result import Status
-from ..system import RodSystem, RodSystem2, check_number
+from ..system import RodSystem, RodSystem2, check_callable, check_number, check_numbers
 from .trace import Recorder
 
 CURVE_PARAMS = ("gamma", "T", "w", "EI", "GJ", "EA")
@@ -60,7 +60,12 @@ def fold_curve(data, fold: int | str, param: str, lo: float, hi: float, out: str
         raise ValueError(f"need ds <= ds_max, got {ds:g} > {ds_max:g}")
     if max_steps < 1:
         raise ValueError("max_steps must be >= 1")
-    forced = tuple(check_number("forced", v) for v in forced)
+    forced = check_numbers("forced", forced)
+    check_callable("callback", callback, "a function of the point")
+    if min_alignment is not None:
+        min_alignment = check_number("min_alignment", min_alignment)
+        if not 0 <= min_alignment < 1:
+            raise ValueError(f"min_alignment must be in [0, 1), got {min_alignment!r}")
     start = _FoldStart(data, fold, param, lo, hi)
     guard = float(data.attrs.get("min_alignment_guard", 0.05)) if min_alignment is None else min_alignment
     settings = dict(range=[lo, hi], ds=ds, ds_max=ds_max, max_steps=max_steps, forced=list(forced),
@@ -183,7 +188,7 @@ def _open(out, data, meta, result, start: _FoldStart, overwrite):
     from ..branchfile import BranchWriter, check_output
     from ..safeio import command_inputs
     from .trace import _mesh_group
-    check_output(out, inputs=command_inputs(loaded=[data]), overwrite=overwrite)  # nor the survey it names
+    out = check_output(out, inputs=command_inputs(loaded=[data]), overwrite=overwrite)  # nor the survey it names
     writer = BranchWriter(out, meta, min_points=2)
     group = writer.group("/", extra_columns=(start.param,))
     _mesh_group(writer, start.one)

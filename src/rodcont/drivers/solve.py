@@ -550,7 +550,7 @@ def write_equilibrium(eq: Equilibrium, out: str, overwrite: bool = False, meta: 
     attrs = file_meta(sysm.rod, T, canon.disc.N, canon.disc.k, "phi_L", opts, canon,
                       dict(meta or {}, solved="one equilibrium (rodcont solve)",
                            controls=json.dumps(controls_spec(sysm.ends))))
-    check_output(out, overwrite=overwrite)
+    out = check_output(out, overwrite=overwrite)
     data = dict(canon.outputs(x, phi), error=eq.error)
     pt = Point(x=x, p=phi, tx=np.zeros(x.size), tp=0.0, kind=Kind.START, data=data)
     pt.tx, pt.tp = _tangent_in_phi(canon, x, phi)

@@ -84,6 +84,7 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
     Returns ``{"branches": [summary per Gamma, in the order given], "diagram": path, "jobs": n}``.
     """
     gammas, rod, jobs = _checked(gammas, rod, jobs, options)
+    _check_run(out_dir, N, k, executor)
     from ..branchfile import check_output
     from ..safeio import command_inputs
     os.makedirs(out_dir, exist_ok=True)
@@ -120,8 +121,10 @@ def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k
 
 def _checked(gammas, rod, jobs, options):
     """The Gamma values, the rod and the number of jobs of a sweep, checked (one error naming the input)."""
-    gammas = list(gammas) if isinstance(gammas, (list, tuple)) else gammas
-    if not isinstance(gammas, list) or not gammas:
+    if isinstance(gammas, (str, bytes, dict)) or not hasattr(gammas, "__iter__"):
+        raise TypeError(f"gammas must be a sequence of Gamma values (numbers), got {gammas!r}")
+    gammas = list(gammas)
+    if not gammas:
         raise ValueError("sweep needs at least one Gamma")
     gammas = [check_number("gamma", g) for g in gammas]
     rod = rod or RodParameters()
@@ -139,6 +142,21 @@ def _checked(gammas, rod, jobs, options):
     from .trace import TraceOptions
     TraceOptions(**{k_: v for k_, v in options.items() if k_ not in ("deflate_at", "store_every", "curve")})
     return gammas, rod, jobs
+
+
+def _check_run(out_dir, N, k, executor) -> None:
+    """The output directory, the mesh and the executor of a sweep, checked before any job starts (a wrong one
+    would otherwise fail in every job, or in ``os.makedirs``)."""
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise TypeError(f"out_dir must be a directory name, got {out_dir!r}")
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise ValueError(f"out_dir {os.fspath(out_dir)} exists and is not a directory")
+    if not 1 <= check_number("N", N, integer=True) <= 100000:
+        raise ValueError(f"N (number of subintervals) must be an integer >= 1, got {N}")
+    if not 1 <= check_number("k", k, integer=True) <= 7:
+        raise ValueError(f"k (Gauss points per subinterval) must be an integer in 1..7, got {k}")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {executor!r}")
 
 
 def _collect(futures: dict, display, queue) -> dict:

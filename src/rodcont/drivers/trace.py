@@ -32,7 +32,7 @@ from ..linalg import scaled_smallest_singular_value
 from ..result import Status
 from ..rod import RodParameters
 from ..settings import TraceOptions
-from ..system import SYSTEM_PARAMS, RodSystem, check_number, controls_spec
+from ..system import SYSTEM_PARAMS, RodSystem, check_mapping, check_number, controls_spec
 from .solve import check_tension
 
 __all__ = ["Accuracy", "Recorder", "StabilityCount", "TraceError", "TraceOptions", "ZoneChangeDetector", "run",
@@ -760,6 +760,7 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
                         f"from a branch, rodcont.trace(**rodcont.restart.restart_from(branch, label))")
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be a function of the point, got {callback!r}")
+    _check_extras(meta, settings, resume)
     rod, N, k, T = _rod_and_tension(gamma, rod, N, k, T, param, start, l0)
     phi_L = check_number("phi_L", phi_L)
     if switch and start is None:
@@ -801,13 +802,23 @@ def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int =
     return branch
 
 
+def _check_extras(meta, settings, resume) -> None:
+    """The types of trace's ``meta``, ``settings`` and ``resume`` (a ``TypeError`` naming the argument)."""
+    check_mapping("meta", meta)
+    if settings is not None and not isinstance(settings, ContinuationSettings):
+        raise TypeError(f"settings must be a rodcont.ContinuationSettings, got {settings!r}")
+    if resume is not None and not isinstance(resume, Branch):
+        raise TypeError(f"resume must be a rodcont.Branch (the unfinished branch, rodcont.load_branch(out)), "
+                        f"got {resume!r}")
+
+
 def _open_output(out, overwrite, attrs, store_every, branch, system):
     """The branch file's writer (None without ``out``) and the recorder that fills branch and file."""
     writer = group = contact = None
     if out is not None:
         from ..branchfile import BranchWriter, check_output
         from ..safeio import curve_files
-        check_output(out, curve_files(system.curve), overwrite=overwrite)  # never onto the survey it reads
+        out = check_output(out, curve_files(system.curve), overwrite=overwrite)  # never onto the survey it reads
         writer = BranchWriter(out, attrs, store_every=store_every)
         group = writer.group("/", extra_columns=((branch.param,) if branch.param != "phi_L" else ())
                              + (("T",) if "T" in system.freed else ())
