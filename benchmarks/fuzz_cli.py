@@ -40,7 +40,7 @@ traceback).
 
 Usage::
 
-    python benchmarks/fuzz_cli.py            # full run (~2300 probes, about 11 minutes on 2 busy cores)
+    python benchmarks/fuzz_cli.py            # full run (2546 probes, 32 minutes on 2 cores shared with other work)
     python benchmarks/fuzz_cli.py --quick    # ~165-probe stratified subset, about 70 s
     python benchmarks/fuzz_cli.py --list     # print the probes, run nothing
     python benchmarks/fuzz_cli.py --filter damaged --keep   # a subset; keep the probe directories
