@@ -234,7 +234,8 @@ class Collocation:
         self._local_cols_all = cols
         self._local_active = np.ascontiguousarray(L[:, self.active, :])
         # the integral rows: Gauss weight times the bases of the integrands' components
-        self._local_integral = np.ascontiguousarray(L[:, self.int_active, :] * self.weights[:, None, None])
+        self._local_integral = (np.ascontiguousarray(L[:, self.int_active, :] * self.weights[:, None, None])
+                                if self.n_int else None)
         # Jets at the collocation points: z = E @ x (row j * npts + q).
         rows = (np.arange(nz)[None, :, None] * npts + np.arange(npts)[:, None, None]) * np.ones((1, 1, wstart[-1]), int)
         mask = L != 0
@@ -411,36 +412,50 @@ class Collocation:
         condition turns out to read more (so the Jacobian is never missing an
         entry, and the conditions sit next to their end in the banded order).
         """
-        nz = self.problem.jet_size
         self._bc_cols = np.unique(np.concatenate(self.end_cols + [self.free_index]))
         self._bc_cols_pos = [np.searchsorted(self._bc_cols, c) for c in self.end_cols]
         mask = np.zeros((self.n_bc, self._bc_cols.size), bool)
         mask[:, np.searchsorted(self._bc_cols, self.free_index)] = True
-        npar = max(len(self.problem.params), 1)
-        slopes = []  # derivatives at the two probes, w.r.t. the end jets and the parameters
+        reads = self._bc_probes()
+        if reads is None:  # a bc undefined at the probes: assume it reads both ends
+            mask[:] = True
+        for side_reads in reads or ():
+            for side in (0, 1):
+                mask[np.ix_(side_reads[side], self._bc_cols_pos[side])] = True
+        mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
+        self._bc_mask = mask
+
+    def _bc_probes(self):
+        """Which end each condition reads at the two probes (``[(reads_a, reads_b)]``; None: a bc undefined
+        there), the affine declaration checked against them. It depends on the problem's ``bc`` only, not on the
+        mesh: kept on the problem for its next discretisation (a remesh; the error estimate's richer twin)."""
+        pb = self.problem
+        nz, npar = pb.jet_size, max(len(pb.params), 1)
+        key = (pb.bc, pb.affine_bc, nz, npar, self.n_bc)
+        cached = pb.__dict__.get("_bc_probe_cache")
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        slopes, found = [], []  # derivatives at the two probes, w.r.t. the end jets and the parameters
         for za, p in ((np.ones(nz), np.ones(npar)), (np.linspace(0.3, 0.7, nz), np.linspace(0.6, 0.9, npar))):
             try:
                 with np.errstate(all="ignore"):
                     g, dg = self._bc_jacobian(za, za[::-1].copy(), p)
-                    if self.problem.affine_bc:
+                    if pb.affine_bc:
                         slopes.append(np.hstack([dg, self._bc_param_slopes(za, za[::-1].copy(), p)]))
             except ValueError:
                 raise
             except Exception:  # noqa: BLE001 - a bc undefined at these jets: assume it reads both ends
-                mask[:] = True
-                slopes = []
+                found, slopes = None, []
                 break
-            for side in (0, 1):
-                reads = np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1) | ~np.all(np.isfinite(
-                    dg[:, side * nz:(side + 1) * nz]), axis=1)
-                mask[np.ix_(reads, self._bc_cols_pos[side])] = True
-        mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
-        self._bc_mask = mask
+            found.append(tuple(np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1)
+                               | ~np.all(np.isfinite(dg[:, side * nz:(side + 1) * nz]), axis=1) for side in (0, 1)))
         # a declaration the probes contradict would give a wrong Jacobian: say so (a problem copied with
         # dataclasses.replace and another bc keeps the flag)
         if slopes and not np.allclose(slopes[0], slopes[1], rtol=1e-12, atol=1e-300):
             raise ValueError("the boundary conditions are declared affine (affine_bc) but their derivatives "
                              "differ between two points: declare affine_bc=False")
+        pb.__dict__["_bc_probe_cache"] = (key, found)
+        return found
 
     def _bc_param_slopes(self, za, zb, p) -> np.ndarray:
         """``dg/dp`` (``(n_bc, len(p))``) by the complex step, one parameter at a time."""
