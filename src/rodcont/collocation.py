@@ -225,21 +225,25 @@ class Collocation:
         local = {key: spaces[key].local(self.S, key[0], interval) for key in spaces}
         widths = [k + m for m in pb.orders]
         wstart = np.concatenate([[0], np.cumsum(widths)])
-        L = np.zeros((npts, nz, wstart[-1]))
         cols = np.empty((npts, wstart[-1]), int)
         for i, m in enumerate(pb.orders):
-            vals, first = local[keys[i]]
-            L[:, self.jet_rows[i]:self.jet_rows[i + 1], wstart[i]:wstart[i + 1]] = vals.transpose(1, 0, 2)
-            cols[:, wstart[i]:wstart[i + 1]] = self.index[i][first[:, None] + np.arange(k + m)[None, :]]
+            cols[:, wstart[i]:wstart[i + 1]] = self.index[i][local[keys[i]][1][:, None] + np.arange(k + m)[None, :]]
         self._local_cols_all = cols
-        self._local_active = np.ascontiguousarray(L[:, self.active, :])
+        self._local_active = self._local_bases(local, keys, wstart, self.active)
         # the integral rows: Gauss weight times the bases of the integrands' components
-        self._local_integral = (np.ascontiguousarray(L[:, self.int_active, :] * self.weights[:, None, None])
+        self._local_integral = (self._local_bases(local, keys, wstart, self.int_active) * self.weights[:, None, None]
                                 if self.n_int else None)
-        # Jets at the collocation points: z = E @ x (row j * npts + q).
-        rows = (np.arange(nz)[None, :, None] * npts + np.arange(npts)[:, None, None]) * np.ones((1, 1, wstart[-1]), int)
-        mask = L != 0
-        self.E = sp.csr_matrix((L[mask], (rows[mask], np.broadcast_to(cols[:, None, :], L.shape)[mask])),
+        # Jets at the collocation points: z = E @ x (row j * npts + q), field by field (a dense block of all
+        # the fields' bases held mostly zeros: 56 MB and a second at N = 2000)
+        rows, ecols, vals = [], [], []
+        for i, m in enumerate(pb.orders):
+            v = local[keys[i]][0]
+            nonzero = v != 0
+            jet_row = (self.jet_rows[i] + np.arange(m + 1))[:, None, None] * npts + np.arange(npts)[None, :, None]
+            rows.append(np.broadcast_to(jet_row, v.shape)[nonzero])
+            ecols.append(np.broadcast_to(cols[None, :, wstart[i]:wstart[i + 1]], v.shape)[nonzero])
+            vals.append(v[nonzero])
+        self.E = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(ecols))),
                                shape=(nz * npts, self.size))
         # Jets at the two ends: small dense blocks on the columns of the basis functions nonzero there.
         self.end_cols, self.end_E = [], []
@@ -257,6 +261,17 @@ class Collocation:
         self._interface_bases()
         self._check_bc_count()
         self._build_pattern()
+
+    def _local_bases(self, local: dict, keys: list, wstart: np.ndarray, components: np.ndarray) -> np.ndarray:
+        """``(npts, len(components), width)``: at each collocation point, the jet components' values on the
+        ``k + m_i`` basis functions of their field (zero on the other fields' columns)."""
+        out = np.zeros((self.npts, components.size, wstart[-1]))
+        for i, m in enumerate(self.problem.orders):
+            lo, hi = self.jet_rows[i], self.jet_rows[i + 1]
+            at = np.flatnonzero((components >= lo) & (components < hi))
+            if at.size:
+                out[:, at, wstart[i]:wstart[i + 1]] = local[keys[i]][0][components[at] - lo].transpose(1, 0, 2)
+        return out
 
     # ---- joins -------------------------------------------------------------
     def _setup_joins(self, b: np.ndarray) -> None:
@@ -500,10 +515,13 @@ class Collocation:
         rank = np.empty_like(self.row_order)
         rank[self.row_order] = np.arange(self.size)
         rows = rank[rows]
-        key = cols.astype(np.int64) * self.size + rows
-        perm = np.argsort(key, kind="stable")
-        if np.any(np.diff(key[perm]) == 0):
+        # the CSC order (by column, then row) of the raw entries: the entry numbers carried through scipy's COO ->
+        # CSC conversion (a counting sort, then a sort within each column; exact as floats below 2^53), where
+        # an argsort of the keys col * size + row took a second at 60 000 unknowns
+        ids = sp.coo_matrix((np.arange(rows.size, dtype=float), (rows, cols)), shape=(self.size, self.size)).tocsc()
+        if ids.nnz != rows.size:
             raise AssertionError("duplicate entries in the collocation pattern")
+        perm = ids.data.astype(np.intp)
         self._slot = np.empty_like(perm)
         self._slot[perm] = np.arange(perm.size)  # raw entry e goes to CSC data position _slot[e]
         self._csc_indices = rows[perm].astype(np.int32)
