@@ -509,7 +509,8 @@ class Collocation:
             cols.append(np.tile(np.arange(self.size), self.n_int))
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         # Order the conditions along the span: each row by the mean of its columns; the integral rows last
-        centre = np.bincount(rows, weights=cols, minlength=self.size) / np.maximum(np.bincount(rows, minlength=self.size), 1)
+        counts = np.maximum(np.bincount(rows, minlength=self.size), 1)
+        centre = np.bincount(rows, weights=cols, minlength=self.size) / counts
         centre[first_integral:] = self.size + np.arange(self.n_int)
         self.row_order = np.argsort(centre, kind="stable")  # F = F_natural[row_order]
         rank = np.empty_like(self.row_order)
