@@ -109,7 +109,7 @@ def test_boundary_probes_kept_on_a_problem_give_the_pattern_a_fresh_problem_gets
     pb = BVProblem(orders=(2,), residual=residual, bc=bc_dirichlet, interval=(0.0, 1.0), params=("lam",))
     first, second = Collocation(pb, 6), Collocation(pb, np.linspace(0.0, 1.0, 10) ** 2)
     fresh = Collocation(dataclasses.replace(pb), np.linspace(0.0, 1.0, 10) ** 2)
-    assert np.array_equal(second._bc_mask, fresh._bc_mask) and np.array_equal(second._slot, fresh._slot)
+    assert np.array_equal(second._bc_mask, fresh._bc_mask) and np.array_equal(second._perm, fresh._perm)
     pb.bc = bc_mixed  # the same problem object, another bc: probed again
     mixed = Collocation(pb, np.linspace(0.0, 1.0, 10) ** 2)
     copied = Collocation(dataclasses.replace(pb), np.linspace(0.0, 1.0, 10) ** 2)

@@ -523,8 +523,7 @@ class Collocation:
         if ids.nnz != rows.size:
             raise AssertionError("duplicate entries in the collocation pattern")
         perm = ids.data.astype(np.intp)
-        self._slot = np.empty_like(perm)
-        self._slot[perm] = np.arange(perm.size)  # raw entry e goes to CSC data position _slot[e]
+        self._perm = perm  # CSC data position i holds raw entry _perm[i]
         self._csc_indices = rows[perm].astype(np.int32)
         self._csc_indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=self.size))]).astype(np.int32)
         self.nnz = perm.size
@@ -622,7 +621,11 @@ class Collocation:
         z = self.jets(x)
         G, dGa = self._pointwise_jacobian(self.S, z, pf, self.active)
         n, npts, nz = G.shape[0], self.npts, pb.jet_size
-        data = [np.matmul(dGa.transpose(2, 0, 1), self._local_active).ravel()]
+        # the entries in raw order (collocation blocks first, written in place), then gathered into CSC order
+        raw = np.empty(self.nnz)
+        blocks = npts * n * self._local_active.shape[2]
+        np.matmul(dGa.transpose(2, 0, 1), self._local_active, out=raw[:blocks].reshape(npts, n, -1))
+        data = []
         za, zb = self.end_jets(x)
         affine = pb.affine_bc and self._bc_block is not None
         if affine:  # constant derivatives, kept from the first linearisation
@@ -676,9 +679,9 @@ class Collocation:
             for j in range(len(free)):
                 dq[:, self.free_index[j]] += dFp[j][first_integral:]
             data.append(dq.ravel())
-        csc = np.empty(self.nnz)
-        csc[self._slot] = np.concatenate(data)
-        J = csc_with_data(self._J_template, csc)
+        if data:
+            raw[blocks:] = np.concatenate(data)
+        J = csc_with_data(self._J_template, raw[self._perm])
         F = np.concatenate([G.T.ravel(), g, h, q])[self.row_order]
         return F, J, [v[self.row_order] for v in dFp[len(free):]]
 
