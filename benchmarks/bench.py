@@ -20,6 +20,8 @@ Sections:
            (examples/conduit_well.toml, target 4 s CPU), its peak memory
   fill     fill of every factorisation at the Gamma = 1 fold (steps, error estimate, stability count): nonzeros
            of L + U over the matrix's own (target 5)
+  breakdown  the first Gamma = 1 trace's CPU by kind of work (instrumented): what compiled pointwise kernels, and
+           a free linear algebra, would leave at most (issue 24: measured, not added)
 """
 
 from __future__ import annotations
@@ -105,6 +107,8 @@ def section_trace(a, old):
         if runs["old"]:
             o = min(runs["old"][1:], key=lambda r: r["cpu"])
             ratio = new["cpu"] / o["cpu"]
+            if gamma == 1.0:
+                a.old_gamma1 = o["cpu"]
             moved = max((abs(p - q) for p, q in zip(new["folds"], o["folds"])), default=0.0)
             line += (f", 0ee0293 {o['cpu']:.3f} s ({o['steps']} steps): ratio {ratio:.2f}  target 0.50  "
                      f"{verdict(ratio <= 0.5)};  folds {', '.join(f'{p:.12f}' for p in new['folds'])} "
@@ -137,8 +141,18 @@ def section_floor(a, old):
         print(f"  (0ee0293: {best['old'][1]:.3f} s, ratio {best['old'][1] / best['old'][0]:.2f} to its floor)")
 
 
+DIAGRAM_API = """
+import sys, time
+import rodcont
+t = time.perf_counter()
+dg = rodcont.diagram(1.0, out=sys.argv[1], overwrite=True, jobs=int(sys.argv[2]))
+print(len(dg.branches), len(dg.folds), time.perf_counter() - t)
+"""
+
+
 def section_diagram(a, old):
-    print(f"\n## whole process: `rodcont diagram --gamma 1 --out F.h5` (branches on a process pool)   {load()}")
+    print(f"\n## whole process: the Gamma = 1 diagram, `rodcont diagram --gamma 1 --out F.h5` and "
+          f"rodcont.diagram(1.0, jobs=...)   {load()}")
     rc = [sys.executable, "-c", "from rodcont._entry import main; main()"]
     out = os.path.join(TMP, "D.h5")
     cpu, wall, text = child(rc + ["diagram", "--gamma", "1", "--out", out, "--overwrite", "--quiet"],
@@ -146,8 +160,13 @@ def section_diagram(a, old):
     for line in text.splitlines():
         if line.strip()[:2].rstrip(":").isdigit() and "points" in line:
             print("   " + line.strip())
-    print(f"wall {wall:.2f} s  target 5 s  {verdict(wall <= 5.0)}   (CPU {cpu:.2f} s, all processes; "
-          f"{os.cpu_count()} cores)")
+    print(f"command line (its default: one branch after the other): wall {wall:.2f} s  target 5 s  "
+          f"{verdict(wall <= 5.0)}   (CPU {cpu:.2f} s, all processes; {os.cpu_count()} cores)")
+    for jobs in (1, os.cpu_count() or 1):
+        cpu, wall, text = child([sys.executable, "-c", DIAGRAM_API, out, str(jobs)], env_for(SRC, "new"))
+        nb, nf, _ = text.split()
+        print(f"rodcont.diagram(1.0, jobs={jobs}) ({nb} branches, {nf} folds): wall {wall:.2f} s  target 5 s  "
+              f"{verdict(wall <= 5.0)}   (CPU {cpu:.2f} s, all processes)")
 
 
 STEP = """
@@ -226,12 +245,77 @@ def section_fill(a, old):
         print(f"{name:28s} {ratio:5.2f}  target 5  {verdict(ratio <= 5.0)}")
 
 
+BREAKDOWN = """
+import collections, json, sys, time
+import numpy, scipy.sparse.linalg as spla
+import rodcont, rodcont.collocation as col, rodcont.rod as rod
+spent, stack = collections.Counter(), []
+
+
+def timed(label, f):  # exclusive CPU time of f under label (what it calls under another label is not its own)
+    def g(*a, **k):
+        t = time.process_time()
+        stack.append(0.0)
+        try:
+            return f(*a, **k)
+        finally:
+            dt, inner = time.process_time() - t, stack.pop()
+            spent[label] += dt - inner
+            if stack:
+                stack[-1] += dt
+    return g
+
+
+class Factors:  # a SuperLU whose solves are timed
+    def __init__(self, lu):
+        self._lu = lu
+
+    def __getattr__(self, name):
+        return getattr(self._lu, name)
+
+
+solve = timed("sparse LU solves", lambda lu, *a, **k: lu.solve(*a, **k))
+Factors.solve = lambda self, *a, **k: solve(self._lu, *a, **k)
+splu = spla.splu
+spla.splu = timed("sparse LU factorisations", lambda *a, **k: Factors(splu(*a, **k)))
+spla.eigs = timed("ARPACK (its solves apart)", spla.eigs)
+for name in ("residual", "jacobian", "_axial_quantities"):
+    setattr(rod.EulerianRod, name, timed("rod pointwise kernels (residual, jacobian, axial)",
+                                         getattr(rod.EulerianRod, name)))
+col.Collocation.__init__ = timed("discretisations built", col.Collocation.__init__)
+t = time.process_time()
+rodcont.trace(float(sys.argv[1]))
+print(json.dumps(dict(total=time.process_time() - t, **spent)))
+"""
+
+
+def section_breakdown(a, old):
+    print(f"\n## where the first Gamma = 1 trace spends its CPU, and what compiled code could gain at most   {load()}")
+    runs = [json.loads(child([sys.executable, "-c", BREAKDOWN, "1"], env_for(SRC, "new"))[2].splitlines()[-1])
+            for _ in range(a.reps)]
+    r = min(runs, key=lambda q: q["total"])
+    total = r.pop("total")
+    rest = total - sum(r.values())
+    rest_name = "the rest (Python and numpy of engine, collocation, estimates, counts)"
+    for name, v in [*sorted(r.items(), key=lambda kv: -kv[1]), (rest_name, rest)]:
+        print(f"{name:62s} {v:6.3f} s  {100 * v / total:4.1f} %")
+    kernels = r.get("rod pointwise kernels (residual, jacobian, axial)", 0.0)
+    linear = sum(v for k, v in r.items() if k.startswith(("sparse LU", "ARPACK")))
+    print(f"total {total:.3f} s; with the pointwise kernels free (compiled, bound): {total - kernels:.3f} s; "
+          f"with the linear algebra free as well: {total - kernels - linear:.3f} s")
+    if getattr(a, "old_gamma1", None):
+        o = a.old_gamma1
+        print(f"against 0ee0293's {o:.3f} s: now {total / o:.2f}, kernels free {(total - kernels) / o:.2f}, "
+              f"kernels and linear algebra free {(total - kernels - linear) / o:.2f}  (target 0.50; instrumented "
+              f"run, a few % slower than the trace section's)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--reps", type=int, default=None, help="repetitions (best of; default 5, --quick 3)")
     ap.add_argument("--old", default="/work/old", help="a checkout of 0ee0293 (else git archive of it)")
-    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill")
+    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill breakdown")
     a = ap.parse_args()
     a.reps = a.reps or (3 if a.quick else 5)
     import numpy as np
@@ -239,7 +323,7 @@ def main():
           f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, {load()}")
     old = old_source(a.old)
     sections = dict(trace=section_trace, floor=section_floor, diagram=section_diagram, long=section_long,
-                    fill=section_fill)
+                    fill=section_fill, breakdown=section_breakdown)
     for name, fn in sections.items():
         if not a.only or name in a.only:
             fn(a, old)

@@ -72,3 +72,53 @@ def test_the_diagram_on_a_process_pool_is_the_serial_diagram(tmp_path):
                 if isinstance(gs[name], h5py.Dataset):
                     assert np.array_equal(gs[name][()], gp[name][()]), (j, name)
         np.testing.assert_array_equal(fs["folds"]["phi_L"][()], fp["folds"]["phi_L"][()])
+
+
+def test_the_jets_matrix_is_each_fields_spline_derivatives_at_the_collocation_points():
+    """``E @ x`` (built field by field, without a dense block of bases) against each field's own spline evaluated at
+    the collocation points (:meth:`SplineSpace.evaluate` on its coefficients), on a graded mesh of the rod."""
+    from rodcont.rod import RodParameters
+    from rodcont.system import RodSystem
+    rod = RodParameters()
+    s = RodSystem(rod, T=rod.tension(1.0), N=7, k=5, breakpoints=np.linspace(0.0, 1.0, 8) ** 1.5)
+    d = s.disc
+    x = np.random.default_rng(3).standard_normal(d.size)
+    z = d.jets(x)
+    for i, m in enumerate(d.problem.orders):
+        for nu in range(m + 1):
+            expected = d.spaces[i].evaluate(x[d.index[i]], d.S, nu)
+            np.testing.assert_allclose(z[d.jet_rows[i] + nu], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+
+
+def test_boundary_probes_kept_on_a_problem_give_the_pattern_a_fresh_problem_gets():
+    """A second discretisation of one problem reuses its boundary probes: the same Jacobian pattern as a fresh copy
+    of the problem gets; given another bc (one that reads the other end) the problem is probed again."""
+    import dataclasses
+
+    from rodcont.collocation import BVProblem, Collocation
+
+    def residual(S, z, p):
+        return np.stack([z[2] + p[0] * np.exp(z[0])])
+
+    def bc_dirichlet(za, zb, p):
+        return np.stack([za[0], zb[0]])
+
+    def bc_mixed(za, zb, p):  # both conditions at the start: the pattern must follow
+        return np.stack([za[0], za[1] - zb[0]])
+
+    pb = BVProblem(orders=(2,), residual=residual, bc=bc_dirichlet, interval=(0.0, 1.0), params=("lam",))
+    first, second = Collocation(pb, 6), Collocation(pb, np.linspace(0.0, 1.0, 10) ** 2)
+    fresh = Collocation(dataclasses.replace(pb), np.linspace(0.0, 1.0, 10) ** 2)
+    assert np.array_equal(second._bc_mask, fresh._bc_mask) and np.array_equal(second._perm, fresh._perm)
+    pb.bc = bc_mixed  # the same problem object, another bc: probed again
+    mixed = Collocation(pb, np.linspace(0.0, 1.0, 10) ** 2)
+    copied = Collocation(dataclasses.replace(pb), np.linspace(0.0, 1.0, 10) ** 2)
+    assert not np.array_equal(mixed._bc_mask, second._bc_mask) and np.array_equal(mixed._bc_mask, copied._bc_mask)
+    x = np.linspace(0.1, 0.5, mixed.size)
+    _, J, _ = mixed.linearise(x, np.array([1.0]))
+    for j in (0, 1, mixed.size - 1):  # the columns of the two ends: the complex step of the residual (exact)
+        e = np.zeros(mixed.size, complex)
+        e[j] = 1e-30j
+        cs = mixed.residual(x + e, np.array([1.0])).imag / 1e-30
+        np.testing.assert_allclose(J[:, j].toarray().ravel(), cs, rtol=1e-12, atol=1e-12 * np.abs(cs).max())
+    assert first.size != second.size

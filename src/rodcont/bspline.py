@@ -53,6 +53,17 @@ def locate(breakpoints: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.clip(j, 0, b.size - 2)
 
 
+@functools.lru_cache(maxsize=None)
+def _derivative_indices(p: int, kk: int) -> tuple[np.ndarray, np.ndarray]:
+    """Piegl & Tiller A2.3's index ``rk + j = r - kk + j`` (``r = 0..p``, ``j = 0..kk``), as ``(valid, clipped)``:
+    ``valid[r, j, None]`` where it lies in ``0..p - kk``; computed once per degree and order (read-only)."""
+    idx = np.arange(p + 1)[:, None] - kk + np.arange(kk + 1)[None, :]
+    valid = ((idx >= 0) & (idx <= p - kk))[:, :, None]
+    idc = np.clip(idx, 0, p - kk)
+    valid.flags.writeable = idc.flags.writeable = False
+    return valid, idc
+
+
 class SplineSpace:
     """``P_{k+m} ∩ C^{m-1}`` on the partition ``breakpoints`` (order ``k+m`` B-splines).
 
@@ -93,11 +104,11 @@ class SplineSpace:
         # (a > b) the knot differences; each degree in one vectorised sweep over r
         ndu = np.zeros((p + 1, p + 1, npts))
         ndu[0, 0] = 1.0
-        left = np.empty((p + 1, npts))
-        right = np.empty((p + 1, npts))
+        # left[r] = x - t[span + 1 - r], right[r] = t[span + r] - x for r = 1 .. p, each in one gather
+        offsets = np.arange(p + 1)[:, None]
+        left = x - t[span + 1 - offsets]
+        right = t[span + offsets] - x
         for jj in range(1, p + 1):  # (reversed slices of left: left[jj - r] for r = 0 .. jj - 1)
-            left[jj] = x - t[span + 1 - jj]
-            right[jj] = t[span + jj] - x
             ndu[jj, :jj] = right[1:jj + 1] + left[jj:0:-1]
             temp = ndu[:jj, jj - 1] / ndu[jj, :jj]
             ndu[:jj, jj] = right[1:jj + 1] * temp
@@ -106,17 +117,14 @@ class SplineSpace:
         out = np.zeros((nu_max + 1, npts, p + 1))
         out[0] = ndu[:, p].T
         # derivatives (Piegl & Tiller A2.3), all r at once: a[r, j] over j = 0..kk
-        r = np.arange(p + 1)[:, None]
         a = np.zeros((p + 1, nd + 2, npts))
         a[:, 0] = 1.0
         for kk in range(1, nd + 1):
             pk = p - kk
-            jcol = np.arange(kk + 1)[None, :]
-            idx = r - kk + jcol                         # rk + j
-            valid = (idx >= 0) & (idx <= pk)
-            idc = np.clip(idx, 0, pk)
-            diff = a[:, :kk + 1] - np.concatenate([np.zeros((p + 1, 1, npts)), a[:, :kk]], axis=1)
-            new = np.where(valid[:, :, None], diff / ndu[pk + 1][idc], 0.0)
+            valid, idc = _derivative_indices(p, kk)
+            diff = a[:, :kk + 1].copy()
+            diff[:, 1:] -= a[:, :kk]
+            new = np.where(valid, diff / ndu[pk + 1][idc], 0.0)
             out[kk] = (new * ndu[idc, pk]).sum(axis=1).T
             a[:, :kk + 1] = new
         factor = p

@@ -225,20 +225,25 @@ class Collocation:
         local = {key: spaces[key].local(self.S, key[0], interval) for key in spaces}
         widths = [k + m for m in pb.orders]
         wstart = np.concatenate([[0], np.cumsum(widths)])
-        L = np.zeros((npts, nz, wstart[-1]))
         cols = np.empty((npts, wstart[-1]), int)
         for i, m in enumerate(pb.orders):
-            vals, first = local[keys[i]]
-            L[:, self.jet_rows[i]:self.jet_rows[i + 1], wstart[i]:wstart[i + 1]] = vals.transpose(1, 0, 2)
-            cols[:, wstart[i]:wstart[i + 1]] = self.index[i][first[:, None] + np.arange(k + m)[None, :]]
+            cols[:, wstart[i]:wstart[i + 1]] = self.index[i][local[keys[i]][1][:, None] + np.arange(k + m)[None, :]]
         self._local_cols_all = cols
-        self._local_active = np.ascontiguousarray(L[:, self.active, :])
+        self._local_active = self._local_bases(local, keys, wstart, self.active)
         # the integral rows: Gauss weight times the bases of the integrands' components
-        self._local_integral = np.ascontiguousarray(L[:, self.int_active, :] * self.weights[:, None, None])
-        # Jets at the collocation points: z = E @ x (row j * npts + q).
-        rows = (np.arange(nz)[None, :, None] * npts + np.arange(npts)[:, None, None]) * np.ones((1, 1, wstart[-1]), int)
-        mask = L != 0
-        self.E = sp.csr_matrix((L[mask], (rows[mask], np.broadcast_to(cols[:, None, :], L.shape)[mask])),
+        self._local_integral = (self._local_bases(local, keys, wstart, self.int_active) * self.weights[:, None, None]
+                                if self.n_int else None)
+        # Jets at the collocation points: z = E @ x (row j * npts + q), field by field (a dense block of all
+        # the fields' bases held mostly zeros: 56 MB and a second at N = 2000)
+        rows, ecols, vals = [], [], []
+        for i, m in enumerate(pb.orders):
+            v = local[keys[i]][0]
+            nonzero = v != 0
+            jet_row = (self.jet_rows[i] + np.arange(m + 1))[:, None, None] * npts + np.arange(npts)[None, :, None]
+            rows.append(np.broadcast_to(jet_row, v.shape)[nonzero])
+            ecols.append(np.broadcast_to(cols[None, :, wstart[i]:wstart[i + 1]], v.shape)[nonzero])
+            vals.append(v[nonzero])
+        self.E = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(ecols))),
                                shape=(nz * npts, self.size))
         # Jets at the two ends: small dense blocks on the columns of the basis functions nonzero there.
         self.end_cols, self.end_E = [], []
@@ -256,6 +261,17 @@ class Collocation:
         self._interface_bases()
         self._check_bc_count()
         self._build_pattern()
+
+    def _local_bases(self, local: dict, keys: list, wstart: np.ndarray, components: np.ndarray) -> np.ndarray:
+        """``(npts, len(components), width)``: at each collocation point, the jet components' values on the
+        ``k + m_i`` basis functions of their field (zero on the other fields' columns)."""
+        out = np.zeros((self.npts, components.size, wstart[-1]))
+        for i, m in enumerate(self.problem.orders):
+            lo, hi = self.jet_rows[i], self.jet_rows[i + 1]
+            at = np.flatnonzero((components >= lo) & (components < hi))
+            if at.size:
+                out[:, at, wstart[i]:wstart[i + 1]] = local[keys[i]][0][components[at] - lo].transpose(1, 0, 2)
+        return out
 
     # ---- joins -------------------------------------------------------------
     def _setup_joins(self, b: np.ndarray) -> None:
@@ -411,36 +427,50 @@ class Collocation:
         condition turns out to read more (so the Jacobian is never missing an
         entry, and the conditions sit next to their end in the banded order).
         """
-        nz = self.problem.jet_size
         self._bc_cols = np.unique(np.concatenate(self.end_cols + [self.free_index]))
         self._bc_cols_pos = [np.searchsorted(self._bc_cols, c) for c in self.end_cols]
         mask = np.zeros((self.n_bc, self._bc_cols.size), bool)
         mask[:, np.searchsorted(self._bc_cols, self.free_index)] = True
-        npar = max(len(self.problem.params), 1)
-        slopes = []  # derivatives at the two probes, w.r.t. the end jets and the parameters
+        reads = self._bc_probes()
+        if reads is None:  # a bc undefined at the probes: assume it reads both ends
+            mask[:] = True
+        for side_reads in reads or ():
+            for side in (0, 1):
+                mask[np.ix_(side_reads[side], self._bc_cols_pos[side])] = True
+        mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
+        self._bc_mask = mask
+
+    def _bc_probes(self):
+        """Which end each condition reads at the two probes (``[(reads_a, reads_b)]``; None: a bc undefined
+        there), the affine declaration checked against them. It depends on the problem's ``bc`` only, not on the
+        mesh: kept on the problem for its next discretisation (a remesh; the error estimate's richer twin)."""
+        pb = self.problem
+        nz, npar = pb.jet_size, max(len(pb.params), 1)
+        key = (pb.bc, pb.affine_bc, nz, npar, self.n_bc)
+        cached = pb.__dict__.get("_bc_probe_cache")
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        slopes, found = [], []  # derivatives at the two probes, w.r.t. the end jets and the parameters
         for za, p in ((np.ones(nz), np.ones(npar)), (np.linspace(0.3, 0.7, nz), np.linspace(0.6, 0.9, npar))):
             try:
                 with np.errstate(all="ignore"):
                     g, dg = self._bc_jacobian(za, za[::-1].copy(), p)
-                    if self.problem.affine_bc:
+                    if pb.affine_bc:
                         slopes.append(np.hstack([dg, self._bc_param_slopes(za, za[::-1].copy(), p)]))
             except ValueError:
                 raise
             except Exception:  # noqa: BLE001 - a bc undefined at these jets: assume it reads both ends
-                mask[:] = True
-                slopes = []
+                found, slopes = None, []
                 break
-            for side in (0, 1):
-                reads = np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1) | ~np.all(np.isfinite(
-                    dg[:, side * nz:(side + 1) * nz]), axis=1)
-                mask[np.ix_(reads, self._bc_cols_pos[side])] = True
-        mask[~mask.any(axis=1)] = True  # a condition that seems to read nothing: give it everything
-        self._bc_mask = mask
+            found.append(tuple(np.any(dg[:, side * nz:(side + 1) * nz] != 0, axis=1)
+                               | ~np.all(np.isfinite(dg[:, side * nz:(side + 1) * nz]), axis=1) for side in (0, 1)))
         # a declaration the probes contradict would give a wrong Jacobian: say so (a problem copied with
         # dataclasses.replace and another bc keeps the flag)
         if slopes and not np.allclose(slopes[0], slopes[1], rtol=1e-12, atol=1e-300):
             raise ValueError("the boundary conditions are declared affine (affine_bc) but their derivatives "
                              "differ between two points: declare affine_bc=False")
+        pb.__dict__["_bc_probe_cache"] = (key, found)
+        return found
 
     def _bc_param_slopes(self, za, zb, p) -> np.ndarray:
         """``dg/dp`` (``(n_bc, len(p))``) by the complex step, one parameter at a time."""
@@ -479,18 +509,21 @@ class Collocation:
             cols.append(np.tile(np.arange(self.size), self.n_int))
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         # Order the conditions along the span: each row by the mean of its columns; the integral rows last
-        centre = np.bincount(rows, weights=cols, minlength=self.size) / np.maximum(np.bincount(rows, minlength=self.size), 1)
+        counts = np.maximum(np.bincount(rows, minlength=self.size), 1)
+        centre = np.bincount(rows, weights=cols, minlength=self.size) / counts
         centre[first_integral:] = self.size + np.arange(self.n_int)
         self.row_order = np.argsort(centre, kind="stable")  # F = F_natural[row_order]
         rank = np.empty_like(self.row_order)
         rank[self.row_order] = np.arange(self.size)
         rows = rank[rows]
-        key = cols.astype(np.int64) * self.size + rows
-        perm = np.argsort(key, kind="stable")
-        if np.any(np.diff(key[perm]) == 0):
+        # the CSC order (by column, then row) of the raw entries: the entry numbers carried through scipy's COO ->
+        # CSC conversion (a counting sort, then a sort within each column; exact as floats below 2^53), where
+        # an argsort of the keys col * size + row took a second at 60 000 unknowns
+        ids = sp.coo_matrix((np.arange(rows.size, dtype=float), (rows, cols)), shape=(self.size, self.size)).tocsc()
+        if ids.nnz != rows.size:
             raise AssertionError("duplicate entries in the collocation pattern")
-        self._slot = np.empty_like(perm)
-        self._slot[perm] = np.arange(perm.size)  # raw entry e goes to CSC data position _slot[e]
+        perm = ids.data.astype(np.intp)
+        self._perm = perm  # CSC data position i holds raw entry _perm[i]
         self._csc_indices = rows[perm].astype(np.int32)
         self._csc_indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=self.size))]).astype(np.int32)
         self.nnz = perm.size
@@ -588,7 +621,11 @@ class Collocation:
         z = self.jets(x)
         G, dGa = self._pointwise_jacobian(self.S, z, pf, self.active)
         n, npts, nz = G.shape[0], self.npts, pb.jet_size
-        data = [np.matmul(dGa.transpose(2, 0, 1), self._local_active).ravel()]
+        # the entries in raw order (collocation blocks first, written in place), then gathered into CSC order
+        raw = np.empty(self.nnz)
+        blocks = npts * n * self._local_active.shape[2]
+        np.matmul(dGa.transpose(2, 0, 1), self._local_active, out=raw[:blocks].reshape(npts, n, -1))
+        data = []
         za, zb = self.end_jets(x)
         affine = pb.affine_bc and self._bc_block is not None
         if affine:  # constant derivatives, kept from the first linearisation
@@ -642,9 +679,9 @@ class Collocation:
             for j in range(len(free)):
                 dq[:, self.free_index[j]] += dFp[j][first_integral:]
             data.append(dq.ravel())
-        csc = np.empty(self.nnz)
-        csc[self._slot] = np.concatenate(data)
-        J = csc_with_data(self._J_template, csc)
+        if data:
+            raw[blocks:] = np.concatenate(data)
+        J = csc_with_data(self._J_template, raw[self._perm])
         F = np.concatenate([G.T.ravel(), g, h, q])[self.row_order]
         return F, J, [v[self.row_order] for v in dFp[len(free):]]
 
