@@ -610,6 +610,8 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
 def _join_unknowns(where: str, attrs: dict) -> int:
     """Unknowns a solution has beyond ``6 N k + 11``: those of the joins at its reference curve's curvature
     jumps (a well's stations), the same on every mesh of the curve."""
+    if "join_unknowns" in attrs:  # stored by a drill string's trace (its sections are joins too)
+        return int(attrs["join_unknowns"])
     spec = str(attrs.get("reference", "straight"))
     if spec == "straight":
         return 0

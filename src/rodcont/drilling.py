@@ -295,6 +295,11 @@ class SteppedWall(Wall):
     def slope_at(self, S):
         return np.zeros(np.shape(S))
 
+    @property
+    def spec(self) -> str:
+        """The wall's line (:attr:`rodcont.contact.Wall.spec`) marked ``steps=1``: read back as a SteppedWall."""
+        return super().spec + ",steps=1"
+
 
 # --------------------------------------------------------------------------
 # Torque and drag: one equilibrium
@@ -494,3 +499,37 @@ def soft_string(well: Well, string: DrillString, depth: float, operation: Operat
             k4 = rhs(S - h, y - h * k3, w, r, m)
             y = y - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return float(y[0]), float(y[1])
+
+
+# --------------------------------------------------------------------------
+# A trace of the string at a fixed depth (its branch file stores the hook load and the surface torque)
+# --------------------------------------------------------------------------
+def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, overwrite: bool = False,
+                    ds: float = 0.1, ds_max: float = 0.5, N_max: int = 4000, max_error: float = 1e-6):
+    """Trace the solved string ``td`` in the axial force at the bit ``T`` (``-WOB``) over ``T_range`` (from the
+    solution's ``T`` towards the other end) with :func:`rodcont.drivers.trace.run`; ``out``: its branch file
+    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept). Returns the
+    :class:`rodcont.branch.Branch`."""
+    from .branch import Branch
+    from .drivers.trace import TraceOptions, _close_output, _open_output, file_meta, run
+    sysm, x = td.system, td.x
+    T0 = float(sysm.value())
+    lo, hi = (float(v) for v in T_range)
+    opts = TraceOptions(p_range=(lo, hi), direction=1 if hi - T0 >= T0 - lo else -1, ds=ds, ds_max=ds_max,
+                        N_max=N_max, max_error=max_error)
+    attrs = file_meta(sysm.rod, T0, sysm.disc.N, sysm.disc.k, "T", opts, sysm,
+                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm)))
+    branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "T", attrs=attrs, curve=sysm.curve, wall=sysm.wall)
+    writer, recorder = _open_output(out, overwrite, attrs, 1, branch, sysm)
+    try:
+        with np.errstate(all="ignore"):
+            run(sysm, x, T0, opts, branch=branch, recorder=recorder)
+    finally:
+        if writer is not None:
+            _close_output(writer, branch, recorder.contact)
+    return branch
+
+
+def _join_unknowns(sysm) -> int:
+    """The unknowns of a solution beyond ``6 N k + 11``: the joins' (survey stations and section boundaries)."""
+    return int(sysm.disc.size - sysm.disc.n_free - 6 * sysm.disc.N * sysm.disc.k - 11)

@@ -1,0 +1,63 @@
+"""Traces of a drill string (rodcont.drilling): the branch file of a trace in the force at the bit keeps the hook
+load and the surface torque of every point and the clearance's steps; a trip in bit depth
+(rodcont.drivers.trip) against independent solves at fixed depths."""
+
+import numpy as np
+import pytest
+
+from rodcont.branchfile import load_branch
+from rodcont.contact import Wall
+from rodcont.drilling import DrillString, Section, SteppedWall, Well, torque_and_drag, trace_bit_force
+from rodcont.ends import hook_load, surface_torque
+
+# a short build-and-hold well (vertical to 100 m, 20 degrees at 250 m) and a collar under drill pipe
+STATIONS = np.array([[0.0, 0, 0], [100.0, 0, 0], [250.0, 20.0, 30.0], [300.0, 20.0, 30.0]])
+COLLAR = Section("collar", 50.0, 1.71e7, 1.32e7, 5.88e9, 2189.0, 0.0889)
+PIPE = Section("pipe", None, 1.23e6, 9.5e5, 7.05e8, 285.0, 0.0635)
+
+
+@pytest.fixture(scope="module")
+def short_well():
+    return Well(STATIONS, hole_diameter=0.2159, friction=0.25), DrillString((COLLAR, PIPE), 0.847)
+
+
+def test_stepped_wall_survives_its_spec():
+    wall = SteppedWall(((0.0, 0.05), (250.0, 0.02), (300.0, 0.02)), eps=1e-5, force_scale=10.0)
+    back = Wall.from_spec(wall.spec)
+    assert type(back) is SteppedWall and back == wall
+    assert back.clearance_at(np.array([249.9, 250.1])).tolist() == [0.05, 0.02]   # a step, not a taper
+    assert type(Wall.from_spec(Wall(0.05).spec)) is Wall
+
+
+def test_bit_force_trace_file_keeps_hook_load_torque_and_steps(short_well, tmp_path):
+    """Rotating off bottom, then the weight on bit from 0 to 20 kN as a trace in T: the file's hook_load and
+    surface_torque columns equal the trace's in memory and the axial force and torque recomputed at S = 0 from
+    each stored solution; the first point is the solve's, the last an independent solve drilling with 20 kN
+    (to 1e-6); the wall reads back as the SteppedWall it was."""
+    well, string = short_well
+    td = torque_and_drag(well, string, 300.0, "rotate")
+    out = str(tmp_path / "wob.h5")
+    br = trace_bit_force(td, (-2e4, 0.0), out)
+    back = load_branch(out)
+    assert type(back.wall) is SteppedWall and back.wall == td.system.wall
+    for name in ("hook_load", "surface_torque"):
+        assert back.table[name] == br.table[name]
+    sysm = td.system
+    for i in range(len(back)):
+        sy = sysm.with_mesh(back.meshes[i])
+        x = sy.expanded(back.coefficients[i])
+        p = sy.params(back.table["T"][i])
+        assert back.table["hook_load"][i] == pytest.approx(hook_load(sy.model, sy.disc, x, p), rel=1e-12)
+        assert back.table["surface_torque"][i] == pytest.approx(surface_torque(sy.model, sy.disc, x, p), rel=1e-12)
+    assert back.table["hook_load"][0] == pytest.approx(td.hook_load, rel=1e-12)
+    assert back.table["T"][-1] == -2e4
+    drill = torque_and_drag(well, string, 300.0, "drill", wob=2e4)
+    assert back.table["hook_load"][-1] == pytest.approx(drill.hook_load, rel=1e-6)
+    assert back.table["surface_torque"][-1] == pytest.approx(drill.surface_torque, rel=1e-6)
+
+
+def test_files_without_drilling_columns_still_read():
+    """A file written before the drilling columns (tests/data/old_trace_g1.h5) reads, without them."""
+    import os
+    b = load_branch(os.path.join(os.path.dirname(__file__), "data", "old_trace_g1.h5"))
+    assert len(b) > 0 and "hook_load" not in b.table and "phi_L" in b.table
