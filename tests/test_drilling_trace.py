@@ -98,3 +98,31 @@ def test_trip_command_checks_its_input():
         run_drilling_trace(well, {"string": string}, "depth", (2000.0, 1000.0), None)
     with pytest.raises(click.UsageError, match="needs the well"):
         run_drilling_trace(None, {"string": string}, "depth", (1000.0, 2000.0), None)
+
+
+def test_lock_up_of_a_horizontal_section_against_the_derived_estimate(tmp_path):
+    """Vertical to 10 m, a 90-degree build of radius R = 150 m, then horizontal; 5" drill pipe (buoyed w), mu 0.3.
+    The estimate (soft string, no buckling): slack-off with F(0) = 0 at lock-up, the compression P = -F is w 10 at
+    the kick-off, on the build dP/dI = R w (cos I - mu sin I) - mu P (pressed to the low side by P/R + w sin I),
+    solved in closed form, and on the horizontal it falls by mu w per metre to 0 at the bit: L_h = P(90) / (mu w).
+    Nowhere does the compression reach the Dawson-Paslay (or, vertical, Lubinski) load (buckling ratio < 1), so
+    the estimate needs no helical term. The trip from 480 to 560 m stops at its lock-up event, the hook load 0
+    there (to 1e-3 of its scale), its horizontal length 1.0-1.04 times L_h (measured 1.021: the stiff string's drag
+    is smaller, it leaves the wall at the build's ends, as in tests/test_friction.py)."""
+    import math
+    from rodcont.drivers.trip import trip
+    R, mu = 150.0, 0.3
+    stations = np.array([[0.0, 0, 0], [10.0, 0, 0], [10 + math.pi / 2 * R, 90.0, 0.0], [900.0, 90.0, 0.0]])
+    well = Well(stations, hole_diameter=0.2159, friction=mu)
+    string = DrillString((PIPE,), 0.847)
+    w = PIPE.w_air * 0.847
+    e = math.exp(mu * math.pi / 2)
+    P90 = (10 * w + R * w * (e * (1 - mu**2) - 2 * mu) / (1 + mu**2)) / e
+    Lh = P90 / (mu * w)
+    br = trip(well, string, (480.0, 560.0), "slack-off", points=2, out=str(tmp_path / "lock.h5"))
+    assert br.table["kind"] == ["start", "event:lock_up"] and str(br.status) == "event"
+    assert abs(br.table["hook_load"][-1]) < 1e-3 * br.table["hook_load"][0]
+    assert max(br.table["buckling_ratio"]) < 1
+    ratio = (br.table["depth"][-1] - 10 - math.pi / 2 * R) / Lh
+    assert 1.0 < ratio < 1.04, ratio
+    assert load_branch(str(tmp_path / "lock.h5")).table["kind"][-1] == "event:lock_up"

@@ -580,10 +580,11 @@ HELICAL_FACTOR = math.sqrt(2.0)
 
 
 def buckling_ratio(td: TorqueDrag) -> np.ndarray:
-    """The compression over the sinusoidal buckling load along the string's profile, ``-F / F_s`` with the
-    Dawson-Paslay load ``F_s = 2 sqrt(EI w sin I / c)`` of the local section (``EI``, buoyed ``w``), inclination
-    ``I`` and clearance ``c`` (0 where the string is in tension; ``inf`` where a vertical stretch is compressed:
-    ``F_s = 0`` there). Above 1: sinusoidally buckled; above :data:`HELICAL_FACTOR`: helically (Chen)."""
+    """The compression over the sinusoidal buckling load along the string's profile, ``-F / F_s`` (0 in tension),
+    with ``F_s = max(2 sqrt(EI w sin I / c), 1.94 (EI w^2)^(1/3))``: Dawson and Paslay's load of the local section
+    (``EI``, buoyed ``w``), inclination ``I`` and clearance ``c``, and where that vanishes (a vertical stretch)
+    Lubinski's load of a vertical pipe buckling under its own weight. Above 1: sinusoidally buckled; above
+    :data:`HELICAL_FACTOR`: helically (Chen, Lin and Cheatham)."""
     P = td.placed
     S, F = td.profile["S"], td.profile["axial_force"]
     t = P.curve.jet(S).K[2]
@@ -591,6 +592,5 @@ def buckling_ratio(td: TorqueDrag) -> np.ndarray:
     EI = _value_at(tuple((a, s.EI) for a, _, s in P.spans), S)
     w = _value_at(P.weights, S)
     c = td.system.model.wall.clearance_at(S)
-    Fs = 2.0 * np.sqrt(EI * w * sin_i / c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(F < 0, np.where(Fs > 0, -F / np.where(Fs > 0, Fs, 1.0), np.inf), 0.0)
+    Fs = np.maximum(2.0 * np.sqrt(EI * w * sin_i / c), 1.94 * np.cbrt(EI * w * w))
+    return np.where(F < 0, -F / Fs, 0.0)
