@@ -35,6 +35,8 @@ COLUMNS = OUTPUTS + ("error", "unstable_modes", "arclength", "dphi_ds", "kind", 
 # branch-table columns of a trace inside a conduit (rodcont.contact): the narrowest gap c - |Delta|,
 # the integral of the wall force, the number of contact zones
 CONTACT_COLUMNS = ("min_gap", "side_force", "contact_zones")
+# and of a drill string (friction on the wall, rodcont.drilling): the axial force and the torque at the rig
+DRILLING_COLUMNS = ("hook_load", "surface_torque")
 FOLD_FIELDS = ("phi_L", "stretch", "torque", "l0", "waves_before", "waves_after", "index", "located",
                "unstable_before", "unstable_after")
 
@@ -105,7 +107,7 @@ class Branch(ContinuationResult):
                    arclength=pt.arclength, dphi_ds=dphi, kind=str(pt.kind), located=bool(pt.located))
         if self.param != "phi_L":
             out[self.param] = float(pt.data[self.param])
-        for name in CONTACT_COLUMNS + ("T",):  # inside a conduit; T solved for under length control
+        for name in CONTACT_COLUMNS + DRILLING_COLUMNS + ("T",):  # inside a conduit; T solved for under length control
             if name in pt.data:
                 out[name] = pt.data[name]
         return out

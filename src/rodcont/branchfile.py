@@ -605,7 +605,7 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
     except (ValueError, TypeError) as exc:
         raise BranchFileError(f"{path}: damaged branch file ({exc})") from None
     param = attrs.get("param", "phi_L")
-    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA", "torque", "l0"):
+    if param not in ("phi_L", "gamma", "T", "w", "EI", "GJ", "EA", "torque", "l0", "depth"):
         raise BranchFileError(f"{path}: damaged branch file (param = {param!r})")
     return attrs
 
@@ -613,6 +613,8 @@ def _validate_attrs(path: str, attrs: dict) -> dict:
 def _join_unknowns(where: str, attrs: dict) -> int:
     """Unknowns a solution has beyond ``6 N k + 11``: those of the joins at its reference curve's curvature
     jumps (a well's stations), the same on every mesh of the curve."""
+    if "join_unknowns" in attrs:  # stored by a drill string's trace (its sections are joins too)
+        return int(attrs["join_unknowns"])
     spec = str(attrs.get("reference", "straight"))
     if spec == "straight":
         return 0
@@ -664,7 +666,9 @@ def _read_group(path: str, root, attrs: dict, name: str = "") -> BranchData:
         x = X[i][np.isfinite(X[i])]
         if x.size == 0 and int(attrs.get("store_every", 1)) > 1 and b.size >= 2:
             continue  # a thinned-out point: no solution stored
-        if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11 + extra:
+        # a trip in bit depth: the joins (survey stations, section boundaries) change from point to point
+        joins = int(branch["join_unknowns"][i]) if "join_unknowns" in branch else extra
+        if b.size < 2 or np.any(np.diff(b) <= 0) or x.size != 6 * (b.size - 1) * k + 11 + joins:
             raise BranchFileError(f"{where}: damaged branch file (point {i}: coefficients do not fit its mesh)")
     folds, bps = _read_tables(where, root, n)
     special = _read_special(where, root, n)

@@ -180,6 +180,9 @@ class Wall:
                 fields["clearance"] = tuple(tuple(float(u) for u in row.split(":")) for row in val.split(";"))
             else:
                 fields[key.strip()] = float(val)
+        if fields.pop("steps", 0.0):  # a piecewise-constant clearance (rodcont.drilling.SteppedWall)
+            from .drilling import SteppedWall
+            return SteppedWall(**fields)
         return cls(**fields)
 
 

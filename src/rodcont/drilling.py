@@ -295,6 +295,11 @@ class SteppedWall(Wall):
     def slope_at(self, S):
         return np.zeros(np.shape(S))
 
+    @property
+    def spec(self) -> str:
+        """The wall's line (:attr:`rodcont.contact.Wall.spec`) marked ``steps=1``: read back as a SteppedWall."""
+        return super().spec + ",steps=1"
+
 
 # --------------------------------------------------------------------------
 # Torque and drag: one equilibrium
@@ -336,17 +341,37 @@ def _force_scale(placed: StringInWell, T_bit: float) -> float:
 
 
 def build_system(placed: StringInWell, friction, T_bit: float, bit_torque: float, eps: float, N: int, k: int = 5,
-                 bit: str = "on-axis"):
+                 bit: str = "on-axis", force_scale: float | None = None, breakpoints=None):
     """The :class:`rodcont.system.RodSystem` of the placed string: weight, wall (clearance table, smoothing
-    ``eps``, force scale :func:`_force_scale`), the friction load, the rig's ends, the sections as joins."""
+    ``eps``, force scale :func:`_force_scale` or ``force_scale``), the friction load, the rig's ends, the sections
+    as joins; on ``N`` subintervals or on ``breakpoints`` (conformed to the stations)."""
     from .ends import rig_ends
     from .loads import WallContact, Weight
     from .system import RodSystem
     kind = Wall if isinstance(placed.clearance, float) else SteppedWall
-    wall = kind(placed.clearance, eps=eps, force_scale=_force_scale(placed, T_bit))
+    wall = kind(placed.clearance, eps=eps, force_scale=force_scale or _force_scale(placed, T_bit))
     loads = [Weight(), WallContact(wall)] + ([friction] if friction is not None else [])
-    return RodSystem(placed.rod, T=T_bit, N=N, k=k, curve=placed.curve, wall=wall, param="T",
+    sysm = RodSystem(placed.rod, T=T_bit, N=N, k=k, curve=placed.curve, wall=wall, param="T",
                      ends=rig_ends(bit_torque, bit), loads=loads, sections=placed.sections)
+    return sysm if breakpoints is None else sysm.with_mesh(sysm.conform(breakpoints))
+
+
+def carried_guess(sysm, prev: "TorqueDrag"):
+    """The solution ``prev`` moved with the bit onto ``sysm`` (the string at a depth ``h`` deeper, on ``prev``'s
+    mesh shifted by ``h``): the fields at ``S`` are ``prev``'s at ``S - h`` (the sections move with the bit; at
+    ``S < h`` the rig's values), fitted by :meth:`rodcont.collocation.Collocation.transfer`."""
+    import copy
+    h = float(sysm.disc.breakpoints[-1] - prev.system.disc.breakpoints[-1])
+    src, moved = copy.copy(prev.system.disc), {}
+    src.breakpoints = src.breakpoints + h
+
+    def shift(space):
+        if id(space) not in moved:
+            moved[id(space)] = copy.copy(space)
+            moved[id(space)].breakpoints, moved[id(space)].knots = space.breakpoints + h, space.knots + h
+        return moved[id(space)]
+    src.spaces = [shift(sp) for sp in src.spaces]
+    return sysm.disc.transfer(prev.x, src)
 
 
 def settle(sysm, x, tol: float = 1e-10):
@@ -410,12 +435,15 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
                     mu=None, wob: float = 0.0, bit_torque: float = 0.0, trip_speed: float | None = None,
                     rpm: float | None = None, bit: str = "on-axis", N: int | None = None, k: int = 5,
                     max_error: float = 1e-6, max_side_force_error: float = 1e-3, N_max: int = 4000,
-                    tol: float = 1e-10) -> TorqueDrag:
+                    tol: float = 1e-10, force_scale: float | None = None,
+                    start: TorqueDrag | None = None) -> TorqueDrag:
     """The stiff string's equilibrium with the bit at MD ``depth`` for ``operation`` (a name of
     :data:`rodcont.loads.OPERATIONS` or an :class:`rodcont.loads.Operation`; ``trip_speed``/``rpm`` combine the
     motion), friction factor ``mu`` (default the well's: number or MD stations), ``wob`` (N, a compression at
     the bit; only on bottom, ``drill``) and ``bit_torque`` (N m). The mesh adapts until the estimated error
-    is below ``max_error`` and the side force's below ``max_side_force_error``."""
+    is below ``max_error`` and the side force's below ``max_side_force_error``. ``force_scale``: the contact
+    law's (default :func:`_force_scale`); ``start``: an equilibrium at a nearby depth to start from (its mesh and
+    law carried down with the bit, :func:`carried_guess`; a cold start where Newton does not converge from it)."""
     from .ends import bit_force
     from .loads import Friction
     op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
@@ -427,10 +455,24 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     T = bit_force(wob)
     N = first_mesh(placed, T, N_max) if N is None else int(N)
     with np.errstate(all="ignore"):
-        sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k)
-        x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+        sysm, x = _warm(placed, friction, T, bit_torque, well.eps, k, start, tol) if start is not None else (None, None)
+        if x is None:
+            sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k, force_scale=force_scale)
+            x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+
+
+def _warm(placed, friction, T, bit_torque, eps, k, start, tol):
+    """``(system, x)`` from the equilibrium ``start`` carried down with the bit (its law, its mesh shifted), or
+    ``(None, None)`` where Newton does not converge from it."""
+    L = placed.curve.length
+    moved = start.system.disc.breakpoints[1:-1] + (L - start.depth)
+    b = np.concatenate([[0.0], moved[(moved > 1e-6 * L) & (moved < L * (1 - 1e-9))], [L]])
+    sysm = build_system(placed, friction, T, bit_torque, eps, b.size - 1, k,
+                        force_scale=start.system.model.contact_scale, breakpoints=b)
+    r = sysm.disc.newton(carried_guess(sysm, start), sysm.base, tol=tol, max_iter=40)
+    return (sysm, r.x) if r.converged else (None, None)
 
 
 def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
@@ -494,3 +536,61 @@ def soft_string(well: Well, string: DrillString, depth: float, operation: Operat
             k4 = rhs(S - h, y - h * k3, w, r, m)
             y = y - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return float(y[0]), float(y[1])
+
+
+# --------------------------------------------------------------------------
+# A trace of the string at a fixed depth (its branch file stores the hook load and the surface torque)
+# --------------------------------------------------------------------------
+def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, overwrite: bool = False,
+                    ds: float = 0.1, ds_max: float = 0.5, N_max: int = 4000, max_error: float = 1e-6):
+    """Trace the solved string ``td`` in the axial force at the bit ``T`` (``-WOB``) over ``T_range`` (from the
+    solution's ``T`` towards the other end) with :func:`rodcont.drivers.trace.run`; ``out``: its branch file
+    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept). Returns the
+    :class:`rodcont.branch.Branch`."""
+    from .branch import Branch
+    from .drivers.trace import TraceOptions, _close_output, _open_output, file_meta, run
+    sysm, x = td.system, td.x
+    T0 = float(sysm.value())
+    lo, hi = (float(v) for v in T_range)
+    opts = TraceOptions(p_range=(lo, hi), direction=1 if hi - T0 >= T0 - lo else -1, ds=ds, ds_max=ds_max,
+                        N_max=N_max, max_error=max_error)
+    attrs = file_meta(sysm.rod, T0, sysm.disc.N, sysm.disc.k, "T", opts, sysm,
+                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm)))
+    branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "T", attrs=attrs, curve=sysm.curve, wall=sysm.wall)
+    writer, recorder = _open_output(out, overwrite, attrs, 1, branch, sysm)
+    try:
+        with np.errstate(all="ignore"):
+            run(sysm, x, T0, opts, branch=branch, recorder=recorder)
+    finally:
+        if writer is not None:
+            _close_output(writer, branch, recorder.contact)
+    return branch
+
+
+def _join_unknowns(sysm) -> int:
+    """The unknowns of a solution beyond ``6 N k + 11``: the joins' (survey stations and section boundaries)."""
+    return int(sysm.disc.size - sysm.disc.n_free - 6 * sysm.disc.N * sysm.disc.k - 11)
+
+
+# --------------------------------------------------------------------------
+# Buckling of the compressed string (the criteria a torque-and-drag check applies along the string)
+# --------------------------------------------------------------------------
+#: the helical onset over the sinusoidal one (Chen, Lin and Cheatham 1990: 2 sqrt(2) against Dawson-Paslay's 2)
+HELICAL_FACTOR = math.sqrt(2.0)
+
+
+def buckling_ratio(td: TorqueDrag) -> np.ndarray:
+    """The compression over the sinusoidal buckling load along the string's profile, ``-F / F_s`` (0 in tension),
+    with ``F_s = max(2 sqrt(EI w sin I / c), 1.94 (EI w^2)^(1/3))``: Dawson and Paslay's load of the local section
+    (``EI``, buoyed ``w``), inclination ``I`` and clearance ``c``, and where that vanishes (a vertical stretch)
+    Lubinski's load of a vertical pipe buckling under its own weight. Above 1: sinusoidally buckled; above
+    :data:`HELICAL_FACTOR`: helically (Chen, Lin and Cheatham)."""
+    P = td.placed
+    S, F = td.profile["S"], td.profile["axial_force"]
+    t = P.curve.jet(S).K[2]
+    sin_i = np.hypot(t[0], t[1])
+    EI = _value_at(tuple((a, s.EI) for a, _, s in P.spans), S)
+    w = _value_at(P.weights, S)
+    c = td.system.model.wall.clearance_at(S)
+    Fs = np.maximum(2.0 * np.sqrt(EI * w * sin_i / c), 1.94 * np.cbrt(EI * w * w))
+    return np.where(F < 0, -F / Fs, 0.0)

@@ -114,6 +114,9 @@ class RodSystem:
         self.wall = wall
         self.curve = self.model.curve
         self.disc: Collocation = self.model.discretise(N, k, breakpoints=breakpoints)
+        from .loads import Friction
+        # a drill string (friction on the wall): its outputs gain the hook load and the surface torque
+        self.drilling = any(isinstance(q, Friction) for q in (loads or ()))
         self.base = self.model.params(phi_L, T=T)
         self.param = param
         self.index = self.model.param_names.index("T" if param == "gamma" else param)
@@ -272,6 +275,10 @@ class RodSystem:
             out.update(min_gap=c["min_gap"], side_force=c["side_force"], contact_zones=len(c["zones"]),
                        max_pressure=float(c["pressure"].max()),
                        penetration=float(np.max(-c["gap"] / self.wall.clearance_at(c["S"]))))
+        if getattr(self, "drilling", False):
+            from .ends import axial_force_and_torque
+            F, M = axial_force_and_torque(self.model, self.disc, x, p, [self.model.interval[0]])
+            out.update(hook_load=float(F[0]), surface_torque=float(M[0]))
         return out
 
     def arclength_scale(self):

@@ -6,6 +6,8 @@
   in the well file given as ``--conduit`` (a ``[well]`` file, ``examples/well_s3d.toml``): call
   :func:`run_drilling_solve` with the parsed values; it prints ``name value`` lines (``hook_load``,
   ``surface_torque``, ...).
+* :func:`run_drilling_trace`: ``trace --param depth --range A B --string S.toml --conduit WELL.toml``, the trip
+  in bit depth (call it with the parsed values, the range, ``--out`` and ``--overwrite``).
 * :func:`broomstick_command`: ``rodcont broomstick WELL.toml --string S.toml --friction 0.15 0.25 0.35
   --depth A B -o broom.png --out B.h5``.
 * :func:`register`: adds the commands to the CLI's group (``register(main_group)``).
@@ -89,6 +91,49 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo):
                     ("contact_zones", len(r.zones)), ("error", r.error), ("N", r.N)):
         echo(f"{name} {v!r}" if isinstance(v, float) else f"{name} {v}")
     return r
+
+
+def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, out: str | None,
+                       overwrite: bool = False, points: int = 11, echo=click.echo):
+    """``trace --param depth --range A B --string S.toml --conduit WELL.toml [--operation OP] [--out F.h5]``: the
+    trip in bit depth (:func:`rodcont.drivers.trip.trip`, ``points`` depths; slack-off from A down to B,
+    pick-up from B up) and ``name value`` lines: ``points``, ``status``, ``hook_load`` and ``surface_torque`` at
+    the trip's last point, ``lock_up`` (m) when it locks up. Returns the :class:`rodcont.branch.Branch`."""
+    from ..drilling import DrillingError
+    from ..drivers.solve import ConvergenceError
+    from ..drivers.trip import trip
+    if param != "depth":
+        raise click.UsageError(f"--string traces in --param depth (a trip), got --param {param}")
+    if conduit is None:
+        raise click.UsageError("--string needs the well: --conduit WELL.toml (a [well] file)")
+    if p_range is None or len(p_range) != 2:
+        raise click.UsageError("--param depth needs --range A B (bit depths, m)")
+    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
+    a, b = (float(v) for v in p_range)
+    if not (0 < a < b) or b > well.total_depth * (1 + 1e-12):
+        raise click.UsageError(f"--range A B needs 0 < A < B <= {well.total_depth:g} (the survey), got {a:g} {b:g}")
+    if out is not None:
+        from ..branchfile import BranchFileError, check_output
+        try:
+            check_output(out, (conduit, values["string"]), overwrite=overwrite)
+        except (BranchFileError, ValueError, OSError) as exc:
+            raise click.UsageError(str(exc)) from None
+    op = values.get("operation") or "slack-off"
+    try:
+        br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
+                  mu=_check("friction", values.get("friction"), nonnegative=True),
+                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"))
+    except (DrillingError, ValueError) as exc:
+        raise click.UsageError(str(exc)) from None
+    except ConvergenceError as exc:
+        raise click.ClickException(str(exc)) from None
+    echo(f"points {len(br)}")
+    echo(f"status {br.status}")
+    echo(f"hook_load {float(br.table['hook_load'][-1])!r}")
+    echo(f"surface_torque {float(br.table['surface_torque'][-1])!r}")
+    if br.table["kind"][-1] == "event:lock_up":
+        echo(f"lock_up {float(br.table['depth'][-1])!r}")
+    return br
 
 
 @click.command("broomstick")

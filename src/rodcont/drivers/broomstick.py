@@ -21,10 +21,10 @@ OPERATIONS = ("pick-up", "slack-off", "rotate")
 
 def broom_job(well, string, depths, operation: str, mu: float, options: dict) -> dict:
     """One curve: the stiff and the soft string at every depth for ``operation`` and ``mu``."""
-    from ..drilling import soft_string, torque_and_drag
+    from ..drilling import buckling_ratio, soft_string, torque_and_drag
     n = len(depths)
     out = {key: np.full(n, np.nan) for key in ("hook_load", "surface_torque", "soft_hook_load",
-                                               "soft_surface_torque", "side_force", "error", "N")}
+                                               "soft_surface_torque", "side_force", "error", "N", "buckling_ratio")}
     out["failures"] = []
     t0 = time.perf_counter()
     for i, d in enumerate(depths):
@@ -32,6 +32,7 @@ def broom_job(well, string, depths, operation: str, mu: float, options: dict) ->
             r = torque_and_drag(well, string, float(d), operation, mu=mu, **options)
             out["hook_load"][i], out["surface_torque"][i] = r.hook_load, r.surface_torque
             out["side_force"][i], out["error"][i], out["N"][i] = r.side_force, r.error, r.N
+            out["buckling_ratio"][i] = float(np.max(buckling_ratio(r)))
         except Exception as exc:  # noqa: BLE001 - one failing depth is reported, the others go on
             out["failures"].append((float(d), str(exc)))
         out["soft_hook_load"][i], out["soft_surface_torque"][i] = soft_string(well, string, float(d), operation, mu=mu)
@@ -88,6 +89,30 @@ def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Ex
     return Broomstick(depths, tuple(operations), tuple(float(m) for m in mus), data, failures, elapsed)
 
 
+def buckling_onsets(b: Broomstick) -> dict:
+    """``{"sinusoidal_buckling": ..., "helical_buckling": ...}``: arrays ``(operation, friction)`` of the first bit
+    depth (in the order of ``b.depths``) where the string's largest buckling ratio
+    (:func:`rodcont.drilling.buckling_ratio`) reaches 1 (Dawson-Paslay) and sqrt(2) (Chen), linear between the
+    depths; NaN where it does not."""
+    from .trip import BUCKLING_EVENTS
+    ratio, d = b.data["buckling_ratio"], b.depths
+    out = {}
+    for label, level in BUCKLING_EVENTS:
+        at = np.full(ratio.shape[1:], np.nan)
+        for i, j in np.ndindex(*at.shape):
+            q = ratio[:, i, j]
+            k = np.flatnonzero(q >= level)
+            if k.size and k[0] == 0:
+                at[i, j] = d[0]
+            elif k.size and np.isfinite(q[k[0]]) and np.isfinite(q[k[0] - 1]):
+                a = k[0] - 1
+                at[i, j] = d[a] + (d[a + 1] - d[a]) * (level - q[a]) / (q[a + 1] - q[a])
+            elif k.size:
+                at[i, j] = d[k[0]]
+        out[label] = at
+    return out
+
+
 def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None:
     """The broomstick as HDF5 (written whole, then renamed over ``path``): ``depth``, ``friction``, ``operations``
     and one dataset per array of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes."""
@@ -105,6 +130,9 @@ def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None
             f["operations"] = np.array(b.operations, dtype=h5py.string_dtype())
             for key, v in b.data.items():
                 f[key] = v
+            if "buckling_ratio" in b.data:
+                for key, v in buckling_onsets(b).items():  # (operation x friction) bit depths, NaN: none
+                    f[key] = v
         commit(tmp, path)
     except BaseException:
         discard(tmp)
@@ -128,6 +156,14 @@ def plot_broomstick(b: Broomstick, path: str) -> None:
             if op == "rotate":
                 axt.plot(b.surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, label=f"mu {mu:g}")
                 axt.plot(b.soft_surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, ls="--")
+    if "buckling_ratio" in b.data:  # where the string first buckles along each curve: o sinusoidal, x helical
+        for (label, at), marker in zip(buckling_onsets(b).items(), ("o", "x")):
+            for i, j in np.ndindex(*at.shape):
+                if np.isfinite(at[i, j]):
+                    H = np.interp(at[i, j], b.depths, b.hook_load[:, i, j]) if b.depths[-1] > b.depths[0] else \
+                        np.interp(at[i, j], b.depths[::-1], b.hook_load[::-1, i, j])
+                    ax.plot([H / 1e3], [at[i, j]], marker=marker, color="k", ms=6, ls="none",
+                            label=label.replace("_", " ") if (i, j) == (0, 0) else None)
     ax.set_xlabel("hook load (kN)")
     ax.set_ylabel("bit measured depth (m)")
     ax.invert_yaxis()

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ..adaptive import Accuracy, AdaptiveContinuation, Hints, ResultRecorder, StartError
-from ..branch import CONTACT_COLUMNS, Branch
+from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
 from ..continuation import ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation, Tracker
 from ..linalg import scaled_smallest_singular_value
 from ..result import Status
@@ -822,7 +822,8 @@ def _open_output(out, overwrite, attrs, store_every, branch, system):
         writer = BranchWriter(out, attrs, store_every=store_every)
         group = writer.group("/", extra_columns=((branch.param,) if branch.param != "phi_L" else ())
                              + (("T",) if "T" in system.freed else ())
-                             + (CONTACT_COLUMNS if system.wall is not None else ()))
+                             + (CONTACT_COLUMNS if system.wall is not None else ())
+                             + (DRILLING_COLUMNS if getattr(system, "drilling", False) else ()))
         _mesh_group(writer, system)
         contact = _ContactRows(system) if system.wall is not None else None
     return writer, Recorder(branch, writer, group, contact, thin=store_every)

@@ -1,0 +1,192 @@
+"""A trip in bit depth: the drill string's equilibrium as its bit runs from one measured depth to another, as one
+branch with the parameter ``depth`` (``rodcont trace --param depth --range A B --string S --conduit WELL.toml``).
+
+The string fills the well from the rig to the bit, so each depth has its own span, survey cut, section positions
+and joins: the trip marches in depth (natural-parameter continuation), each point an equilibrium of
+:func:`rodcont.drilling.torque_and_drag`, by default from its own cold start (``warm=True``: from the previous
+depth's solution moved down with the bit, :func:`rodcont.drilling.carried_guess`; Newton needs 5-20 damped
+iterations from it for steps of 0.1-5 m, and is slower than a cold start on the wells measured). Slack-off runs from
+``A`` down to ``B`` (tripping in), pick-up from ``B`` up to ``A`` (tripping out), other operations from ``A`` to ``B``.
+
+Events along a trip: ``lock_up`` where the hook load reaches zero in slack-off (the string can no longer be pushed
+in: located by the secant in depth), and the end of the trip where no equilibrium is found at the next depth even
+with its step halved four times (a fold of the trip in depth). The branch table (and file) has per point ``depth``,
+``hook_load``, ``surface_torque``, ``side_force``, ``min_gap``, ``contact_zones``, ``T`` and ``join_unknowns``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
+from ..result import Status
+
+TRIP_COLUMNS = ("depth", "T", "join_unknowns", "buckling_ratio") + CONTACT_COLUMNS + DRILLING_COLUMNS
+#: buckling events along a trip: label, the buckling ratio's level (rodcont.drilling.buckling_ratio)
+BUCKLING_EVENTS = (("sinusoidal_buckling", 1.0), ("helical_buckling", 2.0 ** 0.5))
+
+
+def trip_depths(depth_range, operation: str, points: int) -> np.ndarray:
+    """``points`` depths from ``A`` to ``B`` (``A < B``), in the order the bit passes them (pick-up: upward)."""
+    a, b = (float(v) for v in depth_range)
+    if not (0 < a < b and math.isfinite(b)):
+        raise ValueError(f"the depth range must be A B with 0 < A < B, got {a:g} {b:g}")
+    if int(points) < 2:
+        raise ValueError(f"a trip needs at least 2 depths, got {points}")
+    d = np.linspace(a, b, int(points))
+    return d[::-1] if operation == "pick-up" else d
+
+
+def trip_row(r, origin: float) -> dict:
+    """The branch row of the equilibrium ``r`` (a :class:`rodcont.drilling.TorqueDrag`)."""
+    from ..drilling import _join_unknowns, buckling_ratio
+    sysm = r.system
+    out = sysm.outputs(r.x, sysm.value())
+    out.update(depth=r.depth, T=float(sysm.value()), error=r.error, unstable_modes=-1, arclength=abs(r.depth - origin),
+               dphi_ds=0.0, join_unknowns=_join_unknowns(sysm), buckling_ratio=float(np.max(buckling_ratio(r))),
+               kind="regular", located=True)
+    return out
+
+
+def trip(well, string, depth_range, operation: str = "slack-off", *, points: int = 11, mu=None, out: str | None = None,
+         overwrite: bool = False, meta: dict | None = None, warm: bool = False, **options) -> Branch:
+    """The trip of ``string`` in ``well`` over ``depth_range = (A, B)`` (m, bit MD) at ``points`` depths for
+    ``operation`` (friction factor ``mu``, default the well's; ``options`` go to
+    :func:`rodcont.drilling.torque_and_drag`); ``out``: its branch file. ``warm``: start each depth from the
+    previous one's solution carried down (off by default: measured slower than a cold start, README).
+    Returns the :class:`rodcont.branch.Branch` (parameter ``depth``)."""
+    from ..drilling import torque_and_drag
+    depths = trip_depths(depth_range, operation, points)
+    first = torque_and_drag(well, string, float(depths[0]), operation, mu=mu, **options)
+    sysm = first.system
+    attrs = _attrs(first, operation, meta)
+    branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "depth", attrs=attrs, curve=sysm.curve,
+                    wall=sysm.wall)
+    writer, recorder = _open(out, overwrite, attrs, branch, sysm)
+    status, message = Status.BOUND, f"parameter bound depth = {depths[-1]:g} reached"
+    try:
+        prev = _record(recorder, first, depths[0], "start")
+        for d in depths[1:]:
+            r, why = _advance(well, string, prev, float(d), operation, mu, warm, options)
+            if r is None:
+                status, message = Status.NO_CONVERGENCE, why
+                break
+            for label, level in BUCKLING_EVENTS:
+                if _ratio(prev) < level <= _ratio(r):
+                    ev = _locate(well, string, prev, r, lambda q, v=level: _ratio(q) - v, operation, mu, warm,
+                                 options)
+                    _record(recorder, ev, depths[0], f"event:{label}",
+                            f"{label.replace('_', ' ')} at depth {ev.depth:.6g} m: the compression reaches "
+                            f"{level:.4g} times the Dawson-Paslay load somewhere along the string")
+            if operation == "slack-off" and r.hook_load <= 0 < prev.hook_load:
+                lock = _lock_up(well, string, prev, r, operation, mu, warm, options)
+                _record(recorder, lock, depths[0], "event:lock_up",
+                        f"lock-up at depth {lock.depth:.6g} m: the hook load reaches zero (the string cannot be "
+                        f"pushed further in)")
+                status, message = Status.EVENT, f"lock-up at depth {lock.depth:.6g} m"
+                break
+            prev = _record(recorder, r, depths[0], "regular" if d != depths[-1] else "bound")
+    finally:
+        branch.status, branch.message = status, message
+        if writer is not None:
+            recorder.sync()
+            writer.close(message, status)
+    return branch
+
+
+def _attrs(first, operation, meta) -> dict:
+    """The root attributes of a trip's file: the rod at the rig, the wall of the first depth, the run."""
+    import dataclasses
+    import json
+
+    from .. import __version__
+    sysm, rod = first.system, first.system.rod
+    wall = dataclasses.replace(sysm.wall, force_scale=sysm.model.contact_scale)
+    T = float(sysm.value())
+    attrs = dict(kind="branch", gamma=rod.gamma(T) if rod.w > 0 else 0.0, T=T, w=rod.w, EI=rod.EI, GJ=rod.GJ, EA=rod.EA,
+                 L=rod.L, N=int(sysm.disc.N), k=int(sysm.disc.k), param="depth",
+                 weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=0.0, max_error=first_error(),
+                 conduit=wall.spec, reference="straight", operation=operation, trip="depth",
+                 settings=json.dumps(dict(rodcont_version=__version__)))
+    attrs.update(meta or {})
+    return attrs
+
+
+def first_error() -> float:
+    """The error guard of a trip's solves (:func:`rodcont.drilling.torque_and_drag`'s default)."""
+    return 1e-6
+
+
+def _open(out, overwrite, attrs, branch, sysm):
+    from .trace import Recorder, _mesh_group
+    if out is None:
+        return None, Recorder(branch)
+    from ..branchfile import BranchWriter, check_output
+    check_output(out, (), overwrite=overwrite)
+    writer = BranchWriter(out, attrs)
+    group = writer.group("/", extra_columns=TRIP_COLUMNS)
+    _mesh_group(writer, sysm)
+    return writer, Recorder(branch, writer, group)
+
+
+def _record(recorder, r, origin, kind, message=""):
+    row = dict(trip_row(r, origin), kind=kind)
+    x = r.system.stored(r.x)
+    tangent = np.append(np.zeros(x.size), 1.0)  # along the parameter: a restart starts by a step in depth
+    recorder.add_row(row, x, tangent, r.system.disc.breakpoints, message)
+    return r
+
+
+def _advance(well, string, prev, depth, operation, mu, warm, options):
+    """The equilibrium at ``depth`` from ``prev``: the step halved (up to four times) where no solve converges;
+    ``(None, why)`` when none does."""
+    from ..drilling import torque_and_drag
+    from .solve import ConvergenceError
+    target, here, why = depth, prev, ""
+    for _ in range(5):
+        try:
+            r = torque_and_drag(well, string, target, operation, mu=mu, start=here if warm else None, **options)
+        except ConvergenceError as exc:
+            why = str(exc)
+            target = 0.5 * (here.depth + target)
+            continue
+        if target == depth:
+            return r, ""
+        here, target = r, depth
+    return None, (f"no equilibrium at depth {target:.6g} m (step from {here.depth:.6g} m halved four times: the "
+                  f"trip folds in depth or the string cannot be moved there): {why}")
+
+
+def _ratio(r) -> float:
+    from ..drilling import buckling_ratio
+    return float(np.max(buckling_ratio(r)))
+
+
+def _lock_up(well, string, a, b, operation, mu, warm, options):
+    """The depth where the hook load reaches zero between the equilibria ``a`` (> 0) and ``b`` (<= 0)."""
+    return _locate(well, string, a, b, lambda r: r.hook_load, operation, mu, warm, options)
+
+
+def _locate(well, string, a, b, g, operation, mu, warm, options, tol: float = 1e-3):
+    """The equilibrium between ``a`` and ``b`` where ``g`` (of a :class:`rodcont.drilling.TorqueDrag`; of opposite
+    signs at them) is 0: regula falsi in depth (Illinois) until ``|g|`` is within ``tol`` of its scale, or the
+    bracket within 1 mm."""
+    from ..drilling import torque_and_drag
+    ga, gb = g(a), g(b)
+    scale = max(abs(ga), abs(gb))
+    r = a
+    for _ in range(10):
+        if abs(b.depth - a.depth) < 1e-3:
+            break
+        d = a.depth + (b.depth - a.depth) * ga / (ga - gb)
+        r = torque_and_drag(well, string, d, operation, mu=mu, start=a if warm else None, **options)
+        gr = g(r)
+        if abs(gr) <= tol * scale:
+            break
+        if (gr > 0) == (ga > 0):
+            a, ga, gb = r, gr, gb / 2
+        else:
+            b, gb, ga = r, gr, ga / 2
+    return r
