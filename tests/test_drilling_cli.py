@@ -54,3 +54,21 @@ def test_broomstick_user_errors_are_one_line(tmp_path, args, message):
     assert r.returncode == 2
     assert r.stderr.startswith("rodcont: error:") and message in r.stderr and r.stderr.count("\n") == 1
     assert not (tmp_path / "b.png").exists()
+
+
+def test_trace_in_depth_refuses_what_a_trip_cannot_take(tmp_path):
+    """`trace --param depth` is a trip of a drill string: without --string, without --range, with a rod's
+    start option, or a drilling option on a rod's trace, one line and exit 2, no file."""
+    out = str(tmp_path / "trip.h5")
+    cases = [(["--param", "depth", "--range", "100", "200"], "--string"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth"], "--range A B"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200",
+               "--from-straight", "5"], "--from-straight"),
+             (["--string", STRING, "--conduit", WELL, "--param", "T", "--range", "1", "2"], "--param depth"),
+             (["--gamma", "1", "--friction", "0.2"], "--friction")]
+    for args, word in cases:
+        r = _run("trace", *args, "--out", out)
+        assert r.returncode == 2, (args, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("rodcont: error:") and word in lines[0], (args, r.stderr)
+        assert not os.path.exists(out)

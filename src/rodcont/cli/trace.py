@@ -26,6 +26,7 @@ from .common import (
     tension_of,
     worded,
 )
+from .drilling import DRILLING_KEYS, drilling_options, run_drilling_trace
 from .options import check_number, rod_options
 from .progress import Interrupts, Progress
 from .tables import fold_table, fold_warnings
@@ -52,9 +53,10 @@ from .trace_options import given_options, rod_changes, trace_kwargs, trace_optio
               help="unstressed length instead of --gamma/--T: the tension is solved for at each point (column T)")
 @click.option("--torque", type=float, default=None, callback=check_number("--torque"),
               help="end torque held fixed (Phi solved for) in a trace of a rod parameter from --start")
-@click.option("--param", type=click.Choice(["phi_L", "w", "T", "gamma", "EI", "GJ", "EA", "torque", "l0"]),
+@click.option("--param", type=click.Choice(["phi_L", "w", "T", "gamma", "EI", "GJ", "EA", "torque", "l0", "depth"]),
               default="phi_L", show_default=True,
-              help="the continued parameter (others than phi_L with --range; torque: the end rotation free)")
+              help="the continued parameter (others than phi_L with --range; torque: the end rotation free; "
+                   "depth: a trip of the drill string --string in the well --conduit)")
 @click.option("--range", "prange", type=float, nargs=2, default=None, callback=check_number("--range"),
               help="A B: the interval of --param (when it is not phi_L)")
 @click.option("--direction", type=click.Choice(["up", "down"]), default="up", show_default=True,
@@ -65,6 +67,7 @@ from .trace_options import given_options, rod_changes, trace_kwargs, trace_optio
 @click.option("--out", default=None, type=click.Path(dir_okay=False), help="branch file to write (HDF5)")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
+@drilling_options
 @rod_options
 def trace(**given):
     """Trace a branch (in Phi, or in a rod parameter) through its folds and write it to a branch file.
@@ -75,6 +78,12 @@ def trace(**given):
     given override them); --resume FILE.h5 continues an interrupted trace in place.
     """
     a = SimpleNamespace(**given)
+    if a.string is not None or a.param == "depth":
+        return _trace_string(a)
+    said = explicit(*DRILLING_KEYS)
+    if said:
+        raise UserError(f"--{said[0].replace('_', '-')} is an option of a drill string: give --string S.toml "
+                        f"(and the well as --conduit WELL.toml)")
     kw = trace_kwargs(a)
     kw["direction"] = 1 if a.direction == "up" else -1
     if a.resume_file is not None:
@@ -91,6 +100,19 @@ def trace(**given):
     if a.start is not None:
         return _trace_from_point(a, kw)
     _trace_from_start(a, kw)
+
+
+def _trace_string(a) -> None:
+    """``trace --string S.toml --conduit WELL.toml --param depth --range A B``: a trip in bit depth
+    (:func:`.drilling.run_drilling_trace`); the rod's own trace options do not apply to it."""
+    if a.string is None:
+        raise UserError("--param depth is a trip of a drill string: give --string S.toml and --conduit WELL.toml")
+    for name in ("start", "resume_file", "from_straight", "from_critical", "l0", "torque", "depth"):
+        if getattr(a, name) not in (None, False):
+            raise UserError(f"--{name.replace('_file', '').replace('_', '-')} is not an option of a trip "
+                            f"(--string): drop it")
+    run_drilling_trace(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, a.param, a.prange, a.out,
+                       a.overwrite)
 
 
 def _range_stretch_warning(rod, param, prange) -> None:
