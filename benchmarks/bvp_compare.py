@@ -32,12 +32,12 @@ sys.path.insert(0, os.path.join(ROOT, "src"))
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import bvp_reference as ref
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.integrate import solve_bvp
 
+import bvp_reference as ref
 import rodcont
 
 

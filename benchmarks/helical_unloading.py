@@ -71,7 +71,7 @@ import warnings
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from chen_cheatham import C, CHEN_CHEATHAM, EA, EI, W, WU_JUAN, Shapes, f_dp  # noqa: E402
+from chen_cheatham import CHEN_CHEATHAM, EA, EI, WU_JUAN, C, Shapes, W, f_dp  # noqa: E402
 
 from rodcont.branch import Branch  # noqa: E402
 from rodcont.contact import Wall  # noqa: E402

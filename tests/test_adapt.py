@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 
 import rodcont
-from rodcont.drivers.trace import trace
-from rodcont.system import point_system
 from rodcont.collocation import BVProblem, Collocation
+from rodcont.drivers.trace import trace
 from rodcont.mesh import equidistribute
-
+from rodcont.system import point_system
 from test_rod import clamp_miss
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

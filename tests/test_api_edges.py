@@ -10,9 +10,9 @@ radius 1e300 raised ``OverflowError: (34, 'Numerical result out of range')``.
 
 import numpy as np
 import pytest
-from conftest import run
 
 import rodcont
+from conftest import run
 from rodcont import bvp
 
 BRATU = rodcont.BVProblem(orders=[2], residual=lambda S, z, p: z[2] + p[0] * np.exp(z[0]),

@@ -9,7 +9,6 @@ from scipy.special import ellipk
 from rodcont.bifurcation import FoldProblem, bifurcating_direction
 from rodcont.collocation import BVProblem, Collocation
 from rodcont.continuation import ContinuationSettings, Tracker, continuation
-
 from test_continuation import bratu_exact_fold
 
 

@@ -232,6 +232,7 @@ def test_the_tracker_traces_fd_bratu_through_its_fold_without_filling(monkeypatc
     times them, test_the_border_row_fills_an_lu_of_the_whole_matrix_and_not_the_solver), and the fold it
     locates is the discrete fold found by Moore-Spence's extended system (fd_bratu_fold) to 1e-9."""
     import sys
+
     from rodcont.continuation import ContinuationSettings, Tracker
     continuation = sys.modules["rodcont.continuation"]  # (the package's name `continuation` is its function)
     n = 6000

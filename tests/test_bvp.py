@@ -8,12 +8,12 @@ import re
 import subprocess
 import sys
 
-import bvp_reference as ref
 import numpy as np
 import pytest
-from conftest import assert_picture, run
 
+import bvp_reference as ref
 import rodcont
+from conftest import assert_picture, run
 from rodcont import bvp
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -6,11 +6,12 @@ with Newton or Brent on the shooting map, and, for Troesch, a quadrature of
 the first integral.  These check the reference, not rodcont.  A few seconds.
 """
 
-import bvp_reference as ref
 import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
+
+import bvp_reference as ref
 
 RTOL = 1e-13
 

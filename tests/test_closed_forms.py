@@ -18,8 +18,7 @@ import scipy.linalg as sla
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from closed_forms import (characteristic_function, critical_twists,
-                          extensible_euler_load, greenhill_torque)
+from closed_forms import characteristic_function, critical_twists, extensible_euler_load, greenhill_torque
 
 PAPER = dict(EI=1.0, GJ=0.75, EA=255.0, L=1.0)
 

@@ -472,8 +472,9 @@ def test_contact_onset_is_located_and_tends_to_the_exact_onset():
     clearance (independent shooting, T* = 42.888); the located T tends to it like eps^(1/2) (at the event
     the smoothed law carries a contact force ~ P sqrt(eps c / curvature)): measured -2.8e-2, -9.3e-3,
     -2.9e-3 for eps = 1e-4, 1e-5, 1e-6."""
-    import rodcont
     from scipy.optimize import brentq
+
+    import rodcont
     from contact_reference import onset_clearance
     c = 0.01
     T_star = brentq(lambda T: onset_clearance(T) - c, 10.0, 200.0, xtol=1e-12)
@@ -633,6 +634,7 @@ def test_a_compressed_rod_buckles_onto_the_wall_as_the_constrained_elastica():
     to the unbuckled branch for eps = 1e-6: a corrector stalled by the stiff law was taken for converged
     (its point off by 1e-6 of the span), and a new mesh restarted the steps at ds = 0.1."""
     from scipy.optimize import brentq
+
     from contact_reference import onset_clearance
     from rodcont.drivers.trace import trace
     from rodcont.mesh import halved
@@ -746,6 +748,7 @@ def test_a_contact_zone_that_splits_is_located_and_tends_to_the_opening_of_the_f
     the trace locates the split like a fold (the pressure's interior minimum at the contact level), and the
     split tends to T_flat, slowly: measured 28 %, 27 %, 7.9 %, 4.3 % for eps = 1e-4 .. 1e-7."""
     from scipy.optimize import brentq
+
     from rodcont.drivers.trace import trace
     from rodcont.system import RodSystem
     rod, c = RodParameters(w=0.1, EA=1e5), 0.01
@@ -782,6 +785,7 @@ def test_long_steps_in_T_keep_the_rod_on_the_wall():
     as with the default steps. (It rejects only: as a factor of the step control too, it shortened steps
     before the contact onset, where the mesh then adapted less, and the onset moved by 2.5e-4.)"""
     from scipy.optimize import brentq
+
     from rodcont.drivers.trace import trace
     rod, c = RodParameters(w=0.1, EA=1e5), 0.01
     T_flat = brentq(lambda T: _point_contact_elastica(T, c, rod.w, rod.EI, rod.EA, rod.L)["m_mid"], -150, -100,
@@ -827,9 +831,9 @@ def test_a_step_rejected_for_its_error_after_a_branch_point_is_refined_from_its_
     point, on a refined mesh; when that point is a branch point, the new segment starts where the bordered
     matrix is singular. The step's end is refined from instead, converged on the new mesh and stored once
     (forced here: the first regular point after the branch point at T = -80.68 reads an error of 1e-5)."""
+    from rodcont.adaptive import AdaptiveContinuation
     from rodcont.continuation import Kind
     from rodcont.drivers import trace as tr
-    from rodcont.adaptive import AdaptiveContinuation
     starts = []
     remesh = AdaptiveContinuation._remesh
     monkeypatch.setattr(AdaptiveContinuation, "_remesh", lambda self, sysm, pt, *a, **k:
@@ -940,6 +944,7 @@ def test_a_trace_stopped_by_a_singular_point_says_so_and_a_regular_stop_does_not
     (scaled smallest singular value 5e-16; 5.9e-8 to 2.8e-12 at regular points for N = 54 to 1500). The stop
     says so instead of leaving a user to try smaller steps. The estimate itself is checked against a dense SVD."""
     import scipy.sparse as sp
+
     from rodcont.drivers.trace import trace
     from rodcont.linalg import scaled_smallest_singular_value
     A = np.random.default_rng(1).standard_normal((40, 40)) * np.logspace(0, 8, 40)[:, None]
@@ -981,9 +986,10 @@ def test_solve_in_a_conduit_converges_on_a_fine_mesh():
     """On a fine mesh the stiff contact law leaves Newton's steps above tol (1 + |x|) from rounding noise alone:
     solve in the helical conduit at N = 500 failed ('no convergence in 30 iterations') where N = 400 solved.
     Newton now stops where every residual row is at its rounding noise; the answer agrees with N = 400."""
-    from rodcont.curves import parse_reference
-    from rodcont.contact import Wall as W
     import tomllib
+
+    from rodcont.contact import Wall as W
+    from rodcont.curves import parse_reference
     spec = tomllib.loads(open(os.path.join(EXAMPLES, "conduit_helix.toml")).read())["conduit"]
     rod = RodParameters()
     curve = parse_reference(spec["reference"], rod.L)

@@ -14,9 +14,9 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import run
 
 import rodcont
+from conftest import run
 from rodcont.contact import MAX_PENETRATION, Wall, default_force_scale, penetration
 from rodcont.rod import RodParameters
 from rodcont.stability import branch_unstable_modes

@@ -15,11 +15,10 @@ import os
 import numpy as np
 import pytest
 
+import lagrangian_reference as lag
 import rodcont
 from rodcont.drivers.trace import trace
 from rodcont.system import point_system
-
-import lagrangian_reference as lag
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -16,15 +16,23 @@ import math
 
 import numpy as np
 import pytest
-from conftest import assert_tangent_matches_differences
 from scipy.integrate import quad, solve_ivp
 
-from rodcont.continuation import ContinuationSettings, Kind, Tracker
-from rodcont.curves import (Bump, CircularArc, Helix, MinimumCurvatureWell, Straight, UserCurve, Wiggle,
-                            minimal_rotation, parse_reference)
-from rodcont.rod import EulerianRod, Jet, RodParameters
-
 import lagrangian_reference as lag
+from conftest import assert_tangent_matches_differences
+from rodcont.continuation import ContinuationSettings, Kind, Tracker
+from rodcont.curves import (
+    Bump,
+    CircularArc,
+    Helix,
+    MinimumCurvatureWell,
+    Straight,
+    UserCurve,
+    Wiggle,
+    minimal_rotation,
+    parse_reference,
+)
+from rodcont.rod import EulerianRod, Jet, RodParameters
 
 PAPER = RodParameters()
 # PROBLEM.md, Gamma = 1, first fold (Lagrangian reference converged to ~1e-8)

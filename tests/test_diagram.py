@@ -17,9 +17,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import run
 
 import rodcont
+from conftest import run
 from rodcont.drivers.diagram import critical_twists, deflate
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -142,7 +142,7 @@ def test_diagram_file_layout_and_readers(diagram_g1, tmp_path, capsys):
 
 def test_a_seed_on_a_known_branch_is_not_traced_again():
     """Two seeds in one interval of critical twists lie on one branch: it is kept once."""
-    from rodcont.drivers.diagram import _on_known_branch, Diagram, DiagramBranch
+    from rodcont.drivers.diagram import Diagram, DiagramBranch, _on_known_branch
     from rodcont.drivers.trace import straight_seed
     rod = rodcont.RodParameters()
     T = rod.tension(1.0)
@@ -210,7 +210,9 @@ def test_a_diagram_branch_says_which_folds_it_detected_but_could_not_locate(tmp_
     """As a trace does (test_cli.py): a fold whose location fails is warned in the summary, per branch, and
     kept in the branch group's ``unlocated`` attribute, not dropped silently."""
     import json
+
     import h5py
+
     from conftest import run
     from rodcont.continuation import Tracker
     monkeypatch.setattr(Tracker, "locate", lambda self, *a, **k: None)

@@ -7,8 +7,8 @@ import os
 
 import numpy as np
 import pytest
-import softstring_reference as ss
 
+import softstring_reference as ss
 from rodcont.drilling import DrillingError, DrillString, Section, SteppedWall, Well, place_string, torque_and_drag
 
 HERE = os.path.dirname(__file__)

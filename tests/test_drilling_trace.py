@@ -89,6 +89,7 @@ def test_trip_in_depth_against_fixed_depth_solves(short_well, tmp_path):
 
 def test_trip_command_checks_its_input():
     import click
+
     from rodcont.cli_drilling import run_drilling_trace
     well = os.path.join(os.path.dirname(__file__), "..", "examples", "well_s3d.toml")
     string = os.path.join(os.path.dirname(__file__), "..", "examples", "drill_string.toml")
@@ -110,6 +111,7 @@ def test_lock_up_of_a_horizontal_section_against_the_derived_estimate(tmp_path):
     there (to 1e-3 of its scale), its horizontal length 1.0-1.04 times L_h (measured 1.021: the stiff string's drag
     is smaller, it leaves the wall at the build's ends, as in tests/test_friction.py)."""
     import math
+
     from rodcont.drivers.trip import trip
     R, mu = 150.0, 0.3
     stations = np.array([[0.0, 0, 0], [10.0, 0, 0], [10 + math.pi / 2 * R, 90.0, 0.0], [900.0, 90.0, 0.0]])

@@ -9,8 +9,8 @@ import os
 
 import numpy as np
 import pytest
-import softstring_reference as ss
 
+import softstring_reference as ss
 from rodcont.contact import Wall
 from rodcont.curves import CircularArc, MinimumCurvatureWell
 from rodcont.drilling import DrillString, Section, Well, adapt, settle, torque_and_drag

@@ -17,7 +17,6 @@ import pytest
 from rodcont.collocation import BVProblem, Collocation
 from rodcont.curves import MinimumCurvatureWell
 from rodcont.rod import EulerianRod, RodParameters
-
 from test_curves import PAPER, assert_fold_as_on_the_straight_reference, centreline_distance
 
 

@@ -9,14 +9,14 @@ import math
 
 import numpy as np
 import pytest
-from conftest import assert_tangent_matches_differences
 
 import rodcont
+from conftest import assert_tangent_matches_differences
 from rodcont.collocation import Collocation
 from rodcont.curves import parse_reference
 from rodcont.ends import Clamp, RodEnds, Rotation, Tension, Torque, UnstressedLength
 from rodcont.loads import DistributedLoad, WallContact, Weight
-from rodcont.rod import Jet, EulerianRod, RodParameters
+from rodcont.rod import EulerianRod, Jet, RodParameters
 from rodcont.system import RodSystem
 
 WEIGHTLESS = RodParameters(w=0.0)

@@ -9,14 +9,13 @@ import math
 
 import numpy as np
 import pytest
-from conftest import assert_tangent_matches_differences
 from scipy.optimize import minimize_scalar
 
+import lagrangian_reference as lag
+from conftest import assert_tangent_matches_differences
 from rodcont.collocation import Collocation
 from rodcont.drivers.solve import solve_equilibrium
 from rodcont.rod import EulerianRod, RodParameters, helical_waves
-
-import lagrangian_reference as lag
 
 PAPER = RodParameters()
 

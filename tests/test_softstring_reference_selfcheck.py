@@ -9,8 +9,9 @@ import os
 
 import numpy as np
 import pytest
-import softstring_reference as ss
 from scipy.integrate import quad, solve_ivp
+
+import softstring_reference as ss
 
 HERE = os.path.dirname(__file__)
 S3D = "/work/shared/data/well_s3d.csv"

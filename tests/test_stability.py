@@ -23,8 +23,16 @@ from rodcont.branch import Branch
 from rodcont.continuation import ContinuationSettings, Event, Tracker
 from rodcont.drivers.trace import trace
 from rodcont.rod import RodParameters
-from rodcont.stability import (branch_spectra, branch_unstable_modes, exchange_of_stability, fold_indices,
-                               reciprocity_ratio, sleeve_system, spectrum, unstable_modes)
+from rodcont.stability import (
+    branch_spectra,
+    branch_unstable_modes,
+    exchange_of_stability,
+    fold_indices,
+    reciprocity_ratio,
+    sleeve_system,
+    spectrum,
+    unstable_modes,
+)
 from rodcont.system import RodSystem
 
 CRITICAL_TWISTS_T10 = (13.83443036, 21.69758836)  # weightless rod, T = 10, paper stiffnesses (double roots)
@@ -279,8 +287,8 @@ def test_traces_store_the_counts_of_method_one(tmp_path):
     between): it equals method 1 recomputed at every point of the stored Gamma = 1 branch, and the
     fold table says which side is stable."""
     import rodcont
-    from rodcont.system import point_system
     from rodcont.stability import unstable_modes
+    from rodcont.system import point_system
     path = str(tmp_path / "g1.h5")
     rodcont.trace(1.0, out=path)
     d = rodcont.load_branch(path)

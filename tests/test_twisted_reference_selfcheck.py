@@ -9,12 +9,13 @@ exponentially), two parametrisations of the branch and a collocation
 (solve_bvp) re-solution for the Maddocks point.  About 30 s of CPU.
 """
 
-import closed_forms as cf
-import lagrangian_reference as lag
 import numpy as np
 import pytest
-import twisted_reference as tw
 from scipy.integrate import quad, solve_ivp
+
+import closed_forms as cf
+import lagrangian_reference as lag
+import twisted_reference as tw
 
 EI, GJ, EA, L = 1.0, 0.75, 255.0, 1.0
 

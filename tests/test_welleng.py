@@ -6,8 +6,8 @@ import os
 
 import numpy as np
 import pytest
-import softstring_reference as ss
 
+import softstring_reference as ss
 from rodcont.curves import MinimumCurvatureWell
 from rodcont.drilling import DrillString, Section, Well, soft_string, torque_and_drag
 

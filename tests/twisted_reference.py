@@ -141,11 +141,12 @@ from __future__ import annotations
 
 import functools
 
-import closed_forms as cf
-import lagrangian_reference as lag
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq, minimize_scalar
+
+import closed_forms as cf
+import lagrangian_reference as lag
 
 __all__ = [
     "clamped_helix",

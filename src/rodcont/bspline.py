@@ -53,7 +53,7 @@ def locate(breakpoints: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.clip(j, 0, b.size - 2)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _derivative_indices(p: int, kk: int) -> tuple[np.ndarray, np.ndarray]:
     """Piegl & Tiller A2.3's index ``rk + j = r - kk + j`` (``r = 0..p``, ``j = 0..kk``), as ``(valid, clipped)``:
     ``valid[r, j, None]`` where it lies in ``0..p - kk``; computed once per degree and order (read-only)."""

@@ -56,8 +56,8 @@ evaluated exactly at a join belongs to its right subinterval (as everywhere).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -741,7 +741,7 @@ class Collocation:
             x[self.free_index] = free_values
         return x
 
-    def transfer(self, x: np.ndarray, source: "Collocation") -> np.ndarray:
+    def transfer(self, x: np.ndarray, source: Collocation) -> np.ndarray:
         """Unknown vector on this mesh closest to ``source``'s solution ``x``, jets included.
 
         Least squares on the values and derivatives up to each field's order
@@ -766,7 +766,7 @@ class Collocation:
             out[self.free_index] = x[source.free_index]
         return out
 
-    def _transfer_parts(self, source: "Collocation") -> list:
+    def _transfer_parts(self, source: Collocation) -> list:
         b = self.breakpoints
         S = np.union1d(np.union1d(gauss_points(b, min(self.k + 3, 10))[0], b),
                        gauss_points(source.breakpoints, min(source.k + 3, 10))[0])

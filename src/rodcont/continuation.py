@@ -65,14 +65,14 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, fields
 from enum import Enum
-from typing import Callable, Iterator, Sequence
 
 import numpy as np
 from scipy import sparse
 
-from .linalg import LU, RowUpdatedLU, SingularMatrix, at_rounding, bordered, bordered_solver, max_norm, newton_solve
+from .linalg import SingularMatrix, at_rounding, bordered_solver, max_norm, newton_solve
 from .result import ContinuationResult, Status
 
 
@@ -296,7 +296,7 @@ class Finding:
 class Detector:
     """Looks at each accepted step ``base -> new`` and returns the special points in it."""
 
-    def check(self, tracker: "Tracker", base: Point, new: Point, ds: float) -> list[Finding]:
+    def check(self, tracker: Tracker, base: Point, new: Point, ds: float) -> list[Finding]:
         raise NotImplementedError
 
 

@@ -356,7 +356,7 @@ def build_system(placed: StringInWell, friction, T_bit: float, bit_torque: float
     return sysm if breakpoints is None else sysm.with_mesh(sysm.conform(breakpoints))
 
 
-def carried_guess(sysm, prev: "TorqueDrag"):
+def carried_guess(sysm, prev: TorqueDrag):
     """The solution ``prev`` moved with the bit onto ``sysm`` (the string at a depth ``h`` deeper, on ``prev``'s
     mesh shifted by ``h``): the fields at ``S`` are ``prev``'s at ``S - h`` (the sections move with the bit; at
     ``S < h`` the rig's values), fitted by :meth:`rodcont.collocation.Collocation.transfer`."""

@@ -166,7 +166,7 @@ class Operation:
     rpm: float = 0.0
 
     @classmethod
-    def named(cls, name: str, trip_speed: float | None = None, rpm: float | None = None) -> "Operation":
+    def named(cls, name: str, trip_speed: float | None = None, rpm: float | None = None) -> Operation:
         """An operation of :data:`OPERATIONS` by name; ``trip_speed``/``rpm`` replace its motion (combined)."""
         if name not in OPERATIONS:
             raise ValueError(f"unknown operation {name!r}: one of {', '.join(OPERATIONS)}")

@@ -53,14 +53,13 @@ are the continuity of ``d3``, of ``u_perp`` (on ``K1, K2``) and of ``m / GJ``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
-from .curves import ReferenceCurve, Straight, StraightReference, frame_jets, minimal_rotation  # noqa: F401
-from .curves import _cross, _dot
+from .curves import ReferenceCurve, Straight, StraightReference, _cross, _dot, frame_jets, minimal_rotation  # noqa: F401
 from .loads import Kinematics
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
@@ -314,7 +313,7 @@ class EulerianRod:
     """
 
     def __init__(self, rod: RodParameters | None = None, curve: ReferenceCurve | None = None, wall=None,
-                 loads=None, ends=None, sections: "Sections | None" = None):
+                 loads=None, ends=None, sections: Sections | None = None):
         from .ends import RodEnds
         self.rod = rod or RodParameters()
         if not isinstance(self.rod, RodParameters):
@@ -982,7 +981,7 @@ class EulerianRod:
         """
         return self.output_evaluator(disc, samples)(x, p)
 
-    def output_evaluator(self, disc: Collocation, samples: int = 8) -> "_Outputs":
+    def output_evaluator(self, disc: Collocation, samples: int = 8) -> _Outputs:
         """The evaluation matrices behind :meth:`outputs`, built once per discretisation."""
         out = getattr(disc, "_rod_outputs", None)
         if out is None or out.model is not self or out.samples != samples:

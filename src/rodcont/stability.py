@@ -245,7 +245,7 @@ class Spectrum:
 # --------------------------------------------------------------------------
 # The inertia operator B = U W
 # --------------------------------------------------------------------------
-_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _static_parts(disc):

@@ -44,10 +44,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
-import numpy as np                                   # noqa: E402
-from multiprocessing import Pool                     # noqa: E402
+from multiprocessing import Pool  # noqa: E402
 
-import lagrangian_reference as lag                   # noqa: E402
+import numpy as np  # noqa: E402
+
+import lagrangian_reference as lag  # noqa: E402
 
 PAPER = dict(w=10., EI=1., GJ=0.75, EA=255., L=1.)
 PRIMARY_GAMMAS = [0.0, 0.5, 1.0, 2.0, 5.0, 10.0]
