@@ -325,6 +325,16 @@ def load_conduit(path, L: float, reference: str | None = None):
     return _conduit_axis(spec, L, source), wall
 
 
+def unworded_reference_error(msg: str, spec: str) -> str:
+    """``msg`` of :func:`rodcont.curves.parse_reference` without its ``--reference ...:`` prefix, for a file that
+    gives the specification under another name."""
+    kind = spec.strip().partition(":")[0].strip()
+    for prefix in (f"--reference {spec}: ", f"--reference {kind}: ", "--reference: ", "--reference "):
+        if msg.startswith(prefix):
+            return msg[len(prefix):]
+    return msg
+
+
 def _conduit_axis(spec: str, L: float, source: str):
     """The reference curve of a conduit file's ``reference`` key (None for ``straight``), errors worded for
     the file's key (:func:`rodcont.curves.parse_reference` words them for ``--reference``)."""
@@ -337,13 +347,7 @@ def _conduit_axis(spec: str, L: float, source: str):
         with np.errstate(all="ignore"):
             curve = parse_reference(spec, L)
     except (ValueError, ArithmeticError) as exc:
-        msg = str(exc)
-        kind = spec.strip().partition(":")[0].strip()
-        for prefix in (f"--reference {spec}: ", f"--reference {kind}: ", "--reference: ", "--reference "):
-            if msg.startswith(prefix):
-                msg = msg[len(prefix):]
-                break
-        raise ConduitError(f"{source}: {msg}") from None
+        raise ConduitError(f"{source}: {unworded_reference_error(str(exc), spec)}") from None
     if abs(curve.span - L) > 1e-9 * L:
         raise ConduitError(f"{source}: its span {curve.span:.15g} differs from --L {L:.15g}; "
                            f"give --L {curve.span:.15g}")

@@ -46,12 +46,8 @@ def reference_curve(rod, straight_only: str | None = None, source: str | None = 
     except (ValueError, ArithmeticError) as exc:
         msg = str(exc)
         if source:  # parse_reference words its errors for --reference: say where the specification is
-            kind = spec.strip().partition(":")[0].strip()
-            for prefix in (f"--reference {spec}: ", f"--reference {kind}: ", "--reference: ", "--reference "):
-                if msg.startswith(prefix):
-                    msg = msg[len(prefix):]
-                    break
-            raise UserError(f"{source}: {msg}") from None
+            from ..contact import unworded_reference_error
+            raise UserError(f"{source}: {unworded_reference_error(msg, spec)}") from None
         raise UserError(f"--reference {spec}: {msg}" if not msg.startswith("--reference") else msg) from None
     if abs(curve.span - rod.L) > 1e-9 * rod.L:
         raise UserError(f"{label}: its span {curve.span:.15g} differs from --L {rod.L:.15g}; "

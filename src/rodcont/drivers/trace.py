@@ -43,23 +43,6 @@ class TraceError(StartError):
     """A trace that cannot start (the message says why, in one line)."""
 
 
-    def events(self) -> list[Event]:
-        """The rod's guards: validity (the Eulerian description ends), a stretch factor through 0, and
-        ``stretch_max``; each stops the trace with its status."""
-        o = self
-        events = [Event(f"validity guard: min d3.K3 reached min_alignment = {o.min_alignment:g} (the rod is about "
-                        f"to fold back over the reference curve: the Eulerian description ends)",
-                        lambda q: q.data["min_alignment"] - o.min_alignment, stop=True, tol=1e-6,
-                        label="validity_guard", status=Status.VALIDITY_GUARD),
-                  Event("the stretch factor reached 0 (compressed through zero length: not physical)",
-                        lambda q: q.data["alpha_min"], stop=True, tol=1e-6, label="stretch_factor_zero",
-                        status=Status.VALIDITY_GUARD)]
-        if o.stretch_max is not None:
-            events.append(Event(f"stretch_max = {o.stretch_max:g} reached",
-                                lambda q: o.stretch_max - q.data["stretch"], stop=True, label="stretch_max"))
-        return events
-
-
 OPTION_NAMES = tuple(f.name for f in fields(TraceOptions))
 
 #: Seconds between returns of the C heap's free pages to the system in a trace (None: never); see
