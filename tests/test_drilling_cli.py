@@ -72,3 +72,23 @@ def test_trace_in_depth_refuses_what_a_trip_cannot_take(tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("rodcont: error:") and word in lines[0], (args, r.stderr)
         assert not os.path.exists(out)
+
+
+def test_the_survey_a_well_file_names_is_an_input_of_trips_and_broomsticks(tmp_path):
+    """`--out` / `-o` onto the survey CSV that the well file names is refused even with --overwrite (one line,
+    exit 2), and the survey stays byte for byte what it was (before: a trip replaced it with its branch file)."""
+    import shutil
+    for name in ("well_s3d.toml", "well_s3d.csv", "drill_string.toml"):
+        shutil.copy(os.path.join(EXAMPLES, name), tmp_path / name)
+    survey = tmp_path / "well_s3d.csv"
+    before = survey.read_bytes()
+    well, string = str(tmp_path / "well_s3d.toml"), str(tmp_path / "drill_string.toml")
+    for args in (["trace", "--string", string, "--conduit", well, "--param", "depth", "--range", "200", "210",
+                  "--out", str(survey), "--overwrite"],
+                 ["broomstick", well, "--string", string, "--friction", "0.2", "--depth", "200", "210",
+                  "-o", str(survey), "--overwrite"]):
+        r = _run(*args)
+        assert r.returncode == 2, r.stderr
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("rodcont: error:") and "input" in lines[0], r.stderr
+        assert survey.read_bytes() == before

@@ -159,6 +159,7 @@ class Well:
     hole_diameter: float | tuple = 0.2159
     friction: float | tuple = 0.25
     eps: float = 1e-5
+    survey: str | None = None  # the survey file it was read from (an input: outputs may not replace it)
 
     @classmethod
     def from_toml(cls, path: str) -> Well:
@@ -182,7 +183,7 @@ class Well:
         if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 1e-12 <= eps <= 0.1:
             raise DrillingError(f"{path}: eps must be a number in 1e-12 .. 0.1, got {eps!r}")
         return cls(np.asarray(stations, float), _table(sec.get("hole_diameter", 0.2159), "hole_diameter", path),
-                   _table(sec.get("friction", 0.25), "friction", path), float(eps))
+                   _table(sec.get("friction", 0.25), "friction", path), float(eps), survey)
 
     @property
     def total_depth(self) -> float:

@@ -55,6 +55,11 @@ def _load(well_path: str, string_path: str, mud_density):
         raise click.UsageError(str(exc)) from None
 
 
+def _inputs(well_path: str, string_path: str, well) -> tuple:
+    """The files a drilling command reads: the well file, the survey it names, the string file."""
+    return tuple(p for p in (well_path, well.survey, string_path) if p)
+
+
 def _check(name: str, v, positive=False, nonnegative=False):
     import math
     if v is None:
@@ -115,7 +120,7 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     if out is not None:
         from ..branchfile import BranchFileError, check_output
         try:
-            check_output(out, (conduit, values["string"]), overwrite=overwrite)
+            check_output(out, _inputs(conduit, values["string"], well), overwrite=overwrite)
         except (BranchFileError, ValueError, OSError) as exc:
             raise click.UsageError(str(exc)) from None
     op = values.get("operation") or "slack-off"
@@ -163,9 +168,11 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     for path in (png, h5):
         if path is not None and os.path.lexists(path) and not overwrite:
             raise click.UsageError(f"{path} exists: choose another name or add --overwrite to replace it")
-        if path is not None and os.path.realpath(path) in {os.path.realpath(well), os.path.realpath(string)}:
-            raise click.UsageError(f"{path} is an input: choose another output")
     w, s = _load(well, string, _check("mud-density", mud_density, positive=True))
+    inputs = {os.path.realpath(p) for p in _inputs(well, string, w)}
+    for path in (png, h5):
+        if path is not None and os.path.realpath(path) in inputs:
+            raise click.UsageError(f"{path} is an input: choose another output")
     if b > w.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")
     br = broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs)
