@@ -85,7 +85,7 @@ def scipy_bratu(tol=1e-8):
     x, y, lam, step = np.linspace(0, 1, 11), np.zeros((2, 11)), 0.0, 0.1
     while step > 1e-8:
         trial = lam + step
-        s = solve_bvp(lambda x, y: np.vstack([y[1], -trial * np.exp(y[0])]), lambda a, b: np.array([a[0], b[0]]),
+        s = solve_bvp(lambda x, y: np.vstack([y[1], -trial * np.exp(y[0])]), lambda a, b: np.array([a[0], b[0]]),  # noqa: B023 (called in this iteration)
                       x, y, tol=tol, max_nodes=100000)
         if s.success:
             x, y, lam = s.x, s.y, trial
@@ -100,7 +100,7 @@ def scipy_troesch(tol=1e-8):
     x, y, lam, step = np.linspace(0, 1, 11), np.vstack([np.linspace(0, 1, 11), np.ones(11)]), 0.0, 0.5
     while lam < 10.0 and step > 1e-8:
         trial = min(lam + step, 10.0)
-        s = solve_bvp(lambda x, y: np.vstack([y[1], trial * np.sinh(trial * y[0])]),
+        s = solve_bvp(lambda x, y: np.vstack([y[1], trial * np.sinh(trial * y[0])]),  # noqa: B023 (called in this iteration)
                       lambda a, b: np.array([a[0], b[0] - 1.0]), x, y, tol=tol, max_nodes=1000000)
         if s.success:
             x, y, lam = s.x, s.y, trial
@@ -118,7 +118,7 @@ def scipy_elastica(tol=1e-8):
     while delta < 1.0 and step > 1e-8:
         trial = min(delta + step, 1.0)
         s = solve_bvp(lambda x, y, p: np.vstack([y[1], -p[0] * np.sin(y[0]), np.cos(y[0])]),
-                      lambda a, b, p: np.array([a[1], b[1], a[2], b[2] - (1.0 - trial)]), x, y, p=P, tol=tol,
+                      lambda a, b, p: np.array([a[1], b[1], a[2], b[2] - (1.0 - trial)]), x, y, p=P, tol=tol,  # noqa: B023 (called in this iteration)
                       max_nodes=100000)
         if s.success:
             x, y, P, delta = s.x, s.y, s.p, trial

@@ -909,7 +909,7 @@ def _continue_ext(x0, T, par, rtol, active, k_dir, ds0=0.2, ds_max=1.0, max_angl
         try:
             xn, Gn, Jn, _, it = _newton_ext(
                 xp, T, par, rtol, act,
-                lambda xa, G, Ja: (tau, tau @ (xa - xa_prev) - ds))
+                lambda xa, G, Ja: (tau, tau @ (xa - xa_prev) - ds))  # noqa: B023 (called in this iteration)
         except RuntimeError:
             ds /= 2
             continue
@@ -1142,7 +1142,7 @@ def heavy_seed(gamma, phi_seed, w=10., EI=1., GJ=0.75, EA=255., L=1., rtol=1e-12
     active = [0, 1, 2, 3, 4, 5, 7]
     x0 = straight_weightless_state(gamma, phi_seed, w=w, GJ=GJ, EA=EA, L=L)
     prev = None
-    for k, (x, G, Ja, tau) in enumerate(_continue_ext(x0, T, par, rtol, active, 6,
+    for k, (x, _G, _Ja, tau) in enumerate(_continue_ext(x0, T, par, rtol, active, 6,
                                                       ds0=0.5, ds_max=2.0)):
         if x[7] >= w:
             lam = (w - prev[7]) / (x[7] - prev[7])

@@ -9,13 +9,14 @@ torque maximum on the Gamma = 1 branch by Lagrangian shooting), ``tests/closed_f
 import json
 import os
 import re
-import sys
 import warnings
 
 import numpy as np
 import pytest
 
+import closed_forms as cf
 import rodcont
+import twisted_reference as tw
 from conftest import run
 from rodcont.contact import MAX_PENETRATION, Wall, default_force_scale, penetration
 from rodcont.rod import RodParameters
@@ -23,9 +24,6 @@ from rodcont.stability import branch_unstable_modes
 from rodcont.system import RodSystem
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-import closed_forms as cf
-import twisted_reference as tw
 
 with open(os.path.join(HERE, "data", "lagrangian_folds.json")) as fh:
     PRIMARY = {r["gamma"]: r for r in json.load(fh)["primary_folds"]}

@@ -105,7 +105,7 @@ def bishop_by_ode(curve):
         h = 1e-3 * (hi - lo)
 
         def rhs(S, K1):
-            dK3 = _derivative_in_piece(tangent, S, lo, hi, h)
+            dK3 = _derivative_in_piece(tangent, S, lo, hi, h)  # noqa: B023 (called in this iteration)
             return -(dK3 @ K1) * tangent(S)
 
         K1 = solve_ivp(rhs, (lo, hi), K1, method="DOP853", rtol=1e-11, atol=1e-12).y[:, -1]
@@ -239,12 +239,12 @@ def test_bump_and_wiggle_keep_the_ends_of_the_straight_span():
         cb, sb = math.cos(c.end_twist), math.sin(c.end_twist)  # the frame at the end: turned by end_twist
         assert np.max(np.abs(j.K[:, :, 1] - np.array([[0, cb, sb], [0, -sb, cb], [1, 0, 0]]))) < 1e-14
         assert c.span == pytest.approx(1.0, abs=1e-15)
-        slope = lambda x: np.hypot(*c.offset(np.array([x]), 1)[:, 0])  # noqa: E731
-        Lq = quad(lambda x: math.sqrt(1 + slope(x) ** 2), 0, 1, epsabs=1e-14, epsrel=1e-14, limit=200)[0]
+        slope = lambda x: np.hypot(*c.offset(np.array([x]), 1)[:, 0])  # noqa: E731, B023
+        Lq = quad(lambda x: math.sqrt(1 + slope(x) ** 2), 0, 1, epsabs=1e-14, epsrel=1e-14, limit=200)[0]  # noqa: B023 (called in this iteration)
         assert c.length == pytest.approx(Lq, abs=1e-14)
         S = np.linspace(0, c.length, 13)
         x = c.x_of_S(S)
-        sig = [quad(lambda u: math.sqrt(1 + slope(u) ** 2), 0, xi, epsabs=1e-14, epsrel=1e-14, limit=200)[0]
+        sig = [quad(lambda u: math.sqrt(1 + slope(u) ** 2), 0, xi, epsabs=1e-14, epsrel=1e-14, limit=200)[0]  # noqa: B023 (called in this iteration)
                for xi in x]
         assert np.max(np.abs(np.array(sig) - S)) < 1e-14
     assert abs(Bump(1.0, 0.05, 0.3).end_twist) < 1e-15

@@ -78,7 +78,7 @@ def test_critical_twists_are_double_zeros_of_the_shooting_jacobian():
     """Nonlinear shooting map at the straight state: two singular values of the
     6x6 Jacobian (F2, F3, M1, M2, M3, l0) vanish at Phi_n (rotational symmetry),
     and grow linearly away from it."""
-    for n, phi in enumerate(lag.critical_twists(1.0, 2)["phi_L"]):
+    for _n, phi in enumerate(lag.critical_twists(1.0, 2)["phi_L"]):
         x = lag.straight_weightless_state(1.0, phi)
         s = np.linalg.svd(lag._shoot_ext(x, 10., PAR, 1e-12)[1][:6, :6], compute_uv=False)
         assert s[-1] < 1e-12 and s[-2] < 1e-12 and s[-3] > 1e-2

@@ -118,7 +118,7 @@ def test_stability_counts_in_any_units(gamma1_diagram, u, v):
     _, points = gamma1_diagram
     a, b = 10.0 ** u, 10.0 ** v
     counts = []
-    for s, x, phi, ref in points:
+    for s, x, phi, _ref in points:
         s2, y = in_units(s, x, a, b)
         sp = spectrum(s2, y, phi)
         counts.append((sp.unstable, sp.null))

@@ -451,7 +451,7 @@ def clamped_helix(l0, L, Phi, EI=1.0, GJ=0.75, EA=np.inf, segments=24, rtol=1e-1
         guess = localized_helix_loads(l0 - L, Phi, l0, EI, GJ)
     Y = _helix_guess(nodes[:-1], l0, L, guess["T"], guess["M"], EI, GJ)   # (14, segments)
     n = 14 * segments
-    for it in range(1, maxit + 1):
+    for it in range(1, maxit + 1):  # noqa: B007 (the count is returned)
         G = np.zeros(n)
         J = np.zeros((n, n))
         G[0:3] = Y[0:3, 0]
