@@ -291,3 +291,13 @@ def test_loads_must_be_a_list_of_loads():
 def test_a_rod_system_names_a_wrong_number_of_gauss_points(k):
     with pytest.raises(ValueError, match=r"k \(Gauss points per subinterval\) must be an integer in 1..7"):
         rodcont.RodSystem(rodcont.RodParameters(), gamma=1.0, k=k)
+
+
+@pytest.mark.parametrize("branch, error", [([1, 2], TypeError), (1.5, TypeError), (True, TypeError),
+                                           ("x", ValueError), (-1, ValueError)])
+def test_load_branch_names_a_branch_index_of_the_wrong_type(tmp_path, branch, error):
+    # was BranchFileError "has no branch [1, 2]": a wrong type is the caller's error, named as such
+    path = str(tmp_path / "g.h5")
+    rodcont.trace(1.0, phi_max=2.0, out=path)
+    with pytest.raises(error, match=r"branch must be a branch index \(an int >= 0\), got "):
+        rodcont.load_branch(path, branch=branch)

@@ -783,11 +783,22 @@ def _check_path(path) -> None:
         raise TypeError(f"path must be a file name (str or os.PathLike), got {path!r}")
 
 
+def _check_branch_index(branch) -> None:
+    """``branch`` is None, an int >= 0 or its decimal string: another type is a ``TypeError`` naming it."""
+    if branch is None or (isinstance(branch, str) and branch.isdigit()):
+        return
+    if isinstance(branch, bool) or not isinstance(branch, (int, str)):
+        raise TypeError(f"branch must be a branch index (an int >= 0), got {branch!r}")
+    if isinstance(branch, str) or branch < 0:
+        raise ValueError(f"branch must be a branch index (an int >= 0), got {branch!r}")
+
+
 def load_branch(path: str, branch: str | int | None = None) -> Branch:
     """Read a branch file (or branch ``<j>`` of a diagram file) as a :class:`rodcont.branch.Branch`;
     :class:`BranchFileError` with a one-line reason otherwise. A file without rodcont's checksum reads
     with ``unverified = True`` and an :class:`UnverifiedFileWarning`."""
     _check_path(path)
+    _check_branch_index(branch)
     verified = _check_file(path)
     return _marked(path, verified, _load_branch(path, branch))
 
