@@ -301,3 +301,12 @@ def test_load_branch_names_a_branch_index_of_the_wrong_type(tmp_path, branch, er
     rodcont.trace(1.0, phi_max=2.0, out=path)
     with pytest.raises(error, match=r"branch must be a branch index \(an int >= 0\), got "):
         rodcont.load_branch(path, branch=branch)
+
+
+@pytest.mark.parametrize("label", [1.5, [1], None, True])
+def test_a_point_label_of_the_wrong_type_is_a_type_error(tmp_path, label):
+    # was BranchFileError "point label '1.5'" (a file's error for an in-memory object); int and str read
+    br = rodcont.trace(1.0, phi_max=2.0)
+    assert br.point(np.int64(1))["phi_L"] == br.point("1")["phi_L"]
+    with pytest.raises(TypeError, match="a point label is an int or a str"):
+        br.point(label)

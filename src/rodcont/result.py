@@ -322,7 +322,9 @@ class ContinuationResult:
     def resolve(self, label) -> int:
         """Point index of ``label``: an integer (from 0; negative from the end), ``F<j>`` the j-th fold,
         ``BP<j>`` the j-th branch point (from 1), or any special point's label; :class:`PointNotFound`
-        (a ``KeyError`` with the reason) otherwise."""
+        (a ``KeyError`` with the reason) otherwise; a label of another type is a ``TypeError``."""
+        if isinstance(label, bool) or not isinstance(label, (int, np.integer, str)):
+            raise TypeError(f"a point label is an int or a str (F<j>, BP<j>, a special point's label), got {label!r}")
         s = str(label).strip()
         n = len(self)
         for prefix, table, what in (("BP", self.branch_points, "branch point"), ("F", self.folds, "fold")):
