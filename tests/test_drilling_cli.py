@@ -58,14 +58,21 @@ def test_broomstick_user_errors_are_one_line(tmp_path, args, message):
 
 def test_trace_in_depth_refuses_what_a_trip_cannot_take(tmp_path):
     """`trace --param depth` is a trip of a drill string: without --string, without --range, with a rod's
-    start option, or a drilling option on a rod's trace, one line and exit 2, no file."""
+    start option, a rod's trace option (it would be ignored), a weight on bit off bottom, or a drilling option on
+    a rod's trace, one line and exit 2, no file."""
     out = str(tmp_path / "trip.h5")
     cases = [(["--param", "depth", "--range", "100", "200"], "--string"),
              (["--string", STRING, "--conduit", WELL, "--param", "depth"], "--range A B"),
              (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200",
                "--from-straight", "5"], "--from-straight"),
              (["--string", STRING, "--conduit", WELL, "--param", "T", "--range", "1", "2"], "--param depth"),
-             (["--gamma", "1", "--friction", "0.2"], "--friction")]
+             (["--gamma", "1", "--friction", "0.2"], "--friction"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--ds", "0.2"],
+              "--ds"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--EI", "5"],
+              "--EI"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--wob", "1e4"],
+              "drilling")]
     for args, word in cases:
         r = _run("trace", *args, "--out", out)
         assert r.returncode == 2, (args, r.stderr)
@@ -92,3 +99,16 @@ def test_the_survey_a_well_file_names_is_an_input_of_trips_and_broomsticks(tmp_p
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("rodcont: error:") and "input" in lines[0], r.stderr
         assert survey.read_bytes() == before
+
+
+def test_a_trip_echoes_what_it_uses_and_a_string_at_rest_no_negative_zero(tmp_path):
+    """A slack-off trip through the vertical top of the well (300-310 m, 2 depths): the problem echoed names the
+    string, the well, the operation and the depth range, none of a rod's trace options (phi_max, ds, ...) nor a
+    weight on bit; the surface torque of a string that does not turn, with no bit torque and no wall contact, is
+    printed 0.0 (was -0.0, the sign of M = -m at m = 0)."""
+    r = _run("trace", "--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "300", "310",
+             "--out", str(tmp_path / "trip.h5"))
+    assert r.returncode == 0, r.stderr
+    echoed = {line[4:].split(" = ")[0] for line in r.stdout.splitlines() if line.startswith("#   ")}
+    assert echoed == {"[drilling]", "string", "[trace]", "conduit", "param", "prange"}, echoed
+    assert "surface_torque 0.0" in r.stdout.splitlines()

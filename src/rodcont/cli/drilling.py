@@ -127,7 +127,9 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     try:
         br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
                   mu=_check("friction", values.get("friction"), nonnegative=True),
-                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"))
+                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
+                  wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
+                  bit_torque=values.get("bit_torque") or 0.0)
     except (DrillingError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None
     except ConvergenceError as exc:
