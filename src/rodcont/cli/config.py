@@ -162,10 +162,10 @@ def _drop_drilling_or_rod(params: dict) -> None:
             params.pop(name, None)
         return
     trip = "prange" in params
-    keep = set(DRILLING_KEYS) - {"depth"} | set(TRIP_KEYS) if trip else None
+    keep = set(DRILLING_KEYS) - {"depth", "joints"} | set(TRIP_KEYS) if trip else None
+    rod = CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error")
     for name in list(params):
-        if (keep is not None and name not in keep and name not in _CONFIG_SKIP) or name in (
-                CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error")):
+        if (keep is not None and name not in keep and name not in _CONFIG_SKIP) or name in rod:
             params.pop(name, None)
     op = params.get("operation") or ("slack-off" if trip else None)
     for name in ("wob", "bit_torque"):

@@ -107,7 +107,7 @@ def _trace_string(a) -> None:
     (:func:`.drilling.run_drilling_trace`); the rod's own trace options do not apply to it."""
     if a.string is None:
         raise UserError("--param depth is a trip of a drill string: give --string S.toml and --conduit WELL.toml")
-    for name in ("start", "resume_file", "from_straight", "from_critical", "l0", "torque", "depth"):
+    for name in ("start", "resume_file", "from_straight", "from_critical", "l0", "torque", "depth", "joints"):
         if getattr(a, name) not in (None, False):
             raise UserError(f"--{name.replace('_file', '').replace('_', '-')} is not an option of a trip "
                             f"(--string): drop it")
