@@ -68,3 +68,36 @@ def test_buckling_onset_with_friction_shifts_as_the_soft_string_closed_form():
         onsets[mu] = wob
     shift = onsets[0.4] - onsets[0.6]
     assert shift == pytest.approx(W * s * 0.2 * L, rel=0.06)
+
+
+def test_broomstick_marks_buckling_where_the_stored_compression_reaches_dawson_paslay(tmp_path):
+    """A slack-off broomstick in the straight hole at I = 80 degrees (mu 0.4 and 0.6, bit at 100, 150, 200 m; off
+    bottom, the compression is the friction's, largest near the rig): from the HDF5 file's ``max_compression`` the
+    test's own Dawson-Paslay load gives the buckling ratio at each depth (its constant F_s: the hole is straight);
+    where that ratio passes 1 (linear between the depths) is the stored ``sinusoidal_buckling`` depth (to 1e-9
+    m), NaN where it does not (mu 0.4; and no helical onset, the ratio staying below sqrt(2)); the markers drawn on
+    the plot are those depths, at the hook load the stored curve has there."""
+    import h5py
+
+    from rodcont.drivers.broomstick import broomstick, plot_broomstick, write_broomstick
+    depths = np.array([100.0, 150.0, 200.0])
+    mus = (0.4, 0.6)
+    b = broomstick(slant_well(0.4), STRING, depths, mus, operations=("slack-off",), jobs=1)
+    assert not b.failures, b.failures
+    write_broomstick(b, str(tmp_path / "b.h5"))
+    markers = plot_broomstick(b, str(tmp_path / "b.png"))
+    Fs = dawson_paslay(EI, W, INC, HOLE / 2 - RADIUS)
+    with h5py.File(tmp_path / "b.h5") as f:
+        ratio = f["max_compression"][:, 0, :] / Fs
+        stored = f["sinusoidal_buckling"][0, :]
+        assert np.all(np.isnan(f["helical_buckling"][:]))
+        hook = f["hook_load"][:, 0, :]
+    assert ratio[-1, 0] < 1 < ratio[-1, 1] and ratio[0, 1] < 1      # mu 0.6 buckles between two depths, 0.4 not
+    assert np.isnan(stored[0])
+    k = int(np.flatnonzero(ratio[:, 1] >= 1)[0])
+    onset = depths[k - 1] + (depths[k] - depths[k - 1]) * (1 - ratio[k - 1, 1]) / (ratio[k, 1] - ratio[k - 1, 1])
+    assert stored[1] == pytest.approx(onset, abs=1e-9)
+    assert len(markers) == 1
+    label, op, mu, H, depth = markers[0]
+    assert (label, op, mu) == ("sinusoidal_buckling", "slack-off", 0.6) and depth == stored[1]
+    assert H == pytest.approx(np.interp(onset, depths, hook[:, 1]), rel=1e-12)

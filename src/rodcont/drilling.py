@@ -445,6 +445,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     is below ``max_error`` and the side force's below ``max_side_force_error``. ``force_scale``: the contact
     law's (default :func:`_force_scale`); ``start``: an equilibrium at a nearby depth to start from (its mesh and
     law carried down with the bit, :func:`carried_guess`; a cold start where Newton does not converge from it)."""
+    from .drivers.solve import ConvergenceError
     from .ends import bit_force
     from .loads import Friction
     op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
@@ -459,9 +460,41 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
         sysm, x = _warm(placed, friction, T, bit_torque, well.eps, k, start, tol) if start is not None else (None, None)
         if x is None:
             sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k, force_scale=force_scale)
-            x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+            try:
+                x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+            except ConvergenceError:
+                sysm, x = _loaded_gradually(placed, mu, op, T, bit_torque, well.eps, N, k, sysm.model.contact_scale,
+                                            tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+
+
+def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step: float = 0.25):
+    """``(system, x)`` with the friction factor and the bit's force and torque raised together from 0 to theirs,
+    Newton from the previous step's solution, the step halved where Newton fails (down to 1/64): a string compressed
+    by its friction or its WOB near its buckling load is not reached from the straight guess on the axis (a column
+    far past its Euler load), a string without either is (it hangs in tension)."""
+    from .drivers.solve import ConvergenceError
+    from .loads import Friction
+
+    def system(lam):
+        scaled = lam * mu if isinstance(mu, (int, float)) else tuple((a, lam * v) for a, v in mu)
+        return build_system(placed, Friction(scaled, placed.radius, op), lam * T, lam * bit_torque, eps, N, k,
+                            force_scale=force_scale)
+    sysm = system(0.0)
+    x, lam = settle(sysm, sysm.model.initial_guess(sysm.disc, 0.0), tol), 0.0
+    while lam < 1.0:
+        nxt = min(1.0, lam + step)
+        trial = system(nxt)
+        r = trial.disc.newton(x, trial.base, tol=tol, max_iter=40)
+        if r.converged:
+            sysm, x, lam = trial, r.x, nxt
+        elif step > 1 / 64:
+            step /= 2
+        else:
+            raise ConvergenceError(f"no equilibrium found with the friction and the bit's load raised from 0 past "
+                                   f"{lam:g} of theirs: {r.message}")
+    return sysm, x
 
 
 def _warm(placed, friction, T, bit_torque, eps, k, start, tol):

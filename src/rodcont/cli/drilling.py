@@ -2,10 +2,10 @@
 
 * :func:`drilling_options`: the options ``solve`` (and ``trace``) take for a drill string in a well:
   ``--operation``, ``--trip-speed``, ``--rpm``, ``--friction``, ``--string``, ``--mud-density``, ``--wob``,
-  ``--bit-torque``, ``--depth``. With ``--string`` the command solves the string with its bit at ``--depth``
-  in the well file given as ``--conduit`` (a ``[well]`` file, ``examples/well_s3d.toml``): call
-  :func:`run_drilling_solve` with the parsed values; it prints ``name value`` lines (``hook_load``,
-  ``surface_torque``, ...).
+  ``--bit-torque``, ``--depth``, ``--joint-length`` (9.14 m), ``--joints FILE.csv`` (solve). With ``--string``
+  the command solves the string with its bit at ``--depth`` in the well file given as ``--conduit`` (a ``[well]``
+  file, ``examples/well_s3d.toml``): call :func:`run_drilling_solve` with the parsed values; it prints
+  ``name value`` lines (``hook_load``, ``surface_torque``, ..., the side force per length and per joint).
 * :func:`run_drilling_trace`: ``trace --param depth --range A B --string S.toml --conduit WELL.toml``, the trip
   in bit depth (call it with the parsed values, the range, ``--out`` and ``--overwrite``).
 * :func:`broomstick_command`: ``rodcont broomstick WELL.toml --string S.toml --friction 0.15 0.25 0.35
