@@ -101,3 +101,21 @@ def test_broomstick_marks_buckling_where_the_stored_compression_reaches_dawson_p
     label, op, mu, H, depth = markers[0]
     assert (label, op, mu) == ("sinusoidal_buckling", "slack-off", 0.6) and depth == stored[1]
     assert H == pytest.approx(np.interp(onset, depths, hook[:, 1]), rel=1e-12)
+
+
+def test_the_stiff_strings_own_stability_count_turns_just_above_dawson_paslay():
+    """Frictionless, the bit on bottom (WOB, no motion) in the straight hole at I = 80 degrees, 100 m of string: the
+    compression is largest at the bit (WOB, falling by w cos I per metre up). The stiff string's own count of unstable
+    modes (rodcont.stability.unstable_modes, the linearised dynamics) is 0 up to the Dawson-Paslay load at the bit
+    and 1 or more at 1.12 times it: the equilibrium on the low side loses its stability between (a trace in the
+    WOB, measured: the first branch point at 1.073 F_s; above F_s because the string is 100 m long, its compression
+    falls upwards and its bit is held on the axis)."""
+    from rodcont.stability import unstable_modes
+    well = slant_well(0.0)
+    Fs = dawson_paslay(EI, W, INC, HOLE / 2 - RADIUS)
+    counts = {}
+    r = None
+    for f in (0.5, 0.9, 1.0, 1.12):
+        r = torque_and_drag(well, STRING, 100.0, "drill", mu=0.0, wob=f * Fs, trip_speed=0.0, rpm=0.0, start=r)
+        counts[f] = unstable_modes(r.system, r.x, float(r.params[0]))
+    assert counts[0.9] == counts[1.0] == 0 and counts[1.12] >= 1, counts
