@@ -58,14 +58,21 @@ def test_broomstick_user_errors_are_one_line(tmp_path, args, message):
 
 def test_trace_in_depth_refuses_what_a_trip_cannot_take(tmp_path):
     """`trace --param depth` is a trip of a drill string: without --string, without --range, with a rod's
-    start option, or a drilling option on a rod's trace, one line and exit 2, no file."""
+    start option, a rod's trace option (it would be ignored), a weight on bit off bottom, or a drilling option on
+    a rod's trace, one line and exit 2, no file."""
     out = str(tmp_path / "trip.h5")
     cases = [(["--param", "depth", "--range", "100", "200"], "--string"),
              (["--string", STRING, "--conduit", WELL, "--param", "depth"], "--range A B"),
              (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200",
                "--from-straight", "5"], "--from-straight"),
              (["--string", STRING, "--conduit", WELL, "--param", "T", "--range", "1", "2"], "--param depth"),
-             (["--gamma", "1", "--friction", "0.2"], "--friction")]
+             (["--gamma", "1", "--friction", "0.2"], "--friction"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--ds", "0.2"],
+              "--ds"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--EI", "5"],
+              "--EI"),
+             (["--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "100", "200", "--wob", "1e4"],
+              "drilling")]
     for args, word in cases:
         r = _run("trace", *args, "--out", out)
         assert r.returncode == 2, (args, r.stderr)
@@ -92,3 +99,41 @@ def test_the_survey_a_well_file_names_is_an_input_of_trips_and_broomsticks(tmp_p
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("rodcont: error:") and "input" in lines[0], r.stderr
         assert survey.read_bytes() == before
+
+
+def test_a_trip_echoes_what_it_uses_and_a_string_at_rest_no_negative_zero(tmp_path):
+    """A slack-off trip through the vertical top of the well (300-310 m, 11 depths): the problem echoed names the
+    string, the well, the joint length, the operation and the depth range, none of a rod's trace options (phi_max,
+    ds, ...) nor a weight on bit; the surface torque of a string that does not turn, with no bit torque and no wall
+    contact, is printed 0.0 (was -0.0, the sign of M = -m at m = 0)."""
+    r = _run("trace", "--string", STRING, "--conduit", WELL, "--param", "depth", "--range", "300", "310",
+             "--out", str(tmp_path / "trip.h5"))
+    assert r.returncode == 0, r.stderr
+    echoed = {line[4:].split(" = ")[0] for line in r.stdout.splitlines() if line.startswith("#   ")}
+    assert echoed == {"[drilling]", "string", "joint_length", "[trace]", "conduit", "param", "prange"}, echoed
+    assert "surface_torque 0.0" in r.stdout.splitlines()
+
+
+def test_solve_prints_the_side_force_per_joint_and_writes_the_joints(tmp_path):
+    """`solve --string ... --joint-length 10 --joints J.csv` at 505 m (the build from 400 m on, in contact): one row
+    per joint from the bit up (51: the top one 5 m), MD from the bit to the rig; the printed largest joint force
+    and its MD are the table's, the printed side force its sum (to 1e-3: the printed total is a trapezoid rule); a
+    bad joint length: one line, exit 2, no file."""
+    import numpy as np
+    out = tmp_path / "j.csv"
+    r = _run("solve", "--string", STRING, "--conduit", WELL, "--depth", "505", "--joint-length", "10",
+             "--joints", str(out))
+    assert r.returncode == 0, r.stderr
+    lines = dict(line.split(" ", 1) for line in r.stdout.splitlines() if not line.startswith("#"))
+    t = np.genfromtxt(out, delimiter=",", names=True)
+    assert t["joint"].tolist() == list(range(1, 52)) and t["md_bottom"][0] == 505.0 and t["md_top"][-1] == 0.0
+    assert np.allclose(t["md_bottom"] - t["md_top"], [10.0] * 50 + [5.0], rtol=0, atol=1e-9)
+    k = int(np.argmax(t["side_force"]))
+    assert float(lines["max_joint_side_force"]) == t["side_force"][k]
+    assert [float(v) for v in lines["max_joint_side_force_md"].split()] == [t["md_top"][k], t["md_bottom"][k]]
+    assert float(lines["side_force"]) == pytest.approx(t["side_force"].sum(), rel=1e-3)
+    bad = tmp_path / "bad.csv"
+    r = _run("solve", "--string", STRING, "--conduit", WELL, "--depth", "305", "--joint-length", "0",
+             "--joints", str(bad))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--joint-length" in r.stderr
+    assert not bad.exists()

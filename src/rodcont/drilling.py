@@ -445,6 +445,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     is below ``max_error`` and the side force's below ``max_side_force_error``. ``force_scale``: the contact
     law's (default :func:`_force_scale`); ``start``: an equilibrium at a nearby depth to start from (its mesh and
     law carried down with the bit, :func:`carried_guess`; a cold start where Newton does not converge from it)."""
+    from .drivers.solve import ConvergenceError
     from .ends import bit_force
     from .loads import Friction
     op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
@@ -459,9 +460,41 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
         sysm, x = _warm(placed, friction, T, bit_torque, well.eps, k, start, tol) if start is not None else (None, None)
         if x is None:
             sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k, force_scale=force_scale)
-            x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+            try:
+                x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
+            except ConvergenceError:
+                sysm, x = _loaded_gradually(placed, mu, op, T, bit_torque, well.eps, N, k, sysm.model.contact_scale,
+                                            tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+
+
+def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step: float = 0.25):
+    """``(system, x)`` with the friction factor and the bit's force and torque raised together from 0 to theirs,
+    Newton from the previous step's solution, the step halved where Newton fails (down to 1/64): a string compressed
+    by its friction or its WOB near its buckling load is not reached from the straight guess on the axis (a column
+    far past its Euler load), a string without either is (it hangs in tension)."""
+    from .drivers.solve import ConvergenceError
+    from .loads import Friction
+
+    def system(lam):
+        scaled = lam * mu if isinstance(mu, (int, float)) else tuple((a, lam * v) for a, v in mu)
+        return build_system(placed, Friction(scaled, placed.radius, op), lam * T, lam * bit_torque, eps, N, k,
+                            force_scale=force_scale)
+    sysm = system(0.0)
+    x, lam = settle(sysm, sysm.model.initial_guess(sysm.disc, 0.0), tol), 0.0
+    while lam < 1.0:
+        nxt = min(1.0, lam + step)
+        trial = system(nxt)
+        r = trial.disc.newton(x, trial.base, tol=tol, max_iter=40)
+        if r.converged:
+            sysm, x, lam = trial, r.x, nxt
+        elif step > 1 / 64:
+            step /= 2
+        else:
+            raise ConvergenceError(f"no equilibrium found with the friction and the bit's load raised from 0 past "
+                                   f"{lam:g} of theirs: {r.message}")
+    return sysm, x
 
 
 def _warm(placed, friction, T, bit_torque, eps, k, start, tol):
@@ -488,6 +521,43 @@ def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
                    in_contact=con["gap"] <= 0.01 * model.wall.clearance_at(con["S"]))
     return TorqueDrag(float(placed.curve.length), op, mu, float(wob), float(bit_torque), float(F[0]), float(M[0]),
                       profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed)
+
+
+# --------------------------------------------------------------------------
+# Side force per joint
+# --------------------------------------------------------------------------
+#: a joint of drill pipe, m (30 ft, range 2)
+JOINT_LENGTH = 9.14
+
+
+def joint_edges(depth: float, joint_length: float = JOINT_LENGTH) -> np.ndarray:
+    """The joints' ends in MD from the rig down, ``0, ..., L - 2 l_j, L - l_j, L``: joints counted from the bit up
+    (the string is made up from the bit), the top one cut at the rig (shorter than ``l_j``)."""
+    if not (math.isfinite(joint_length) and joint_length > 0):
+        raise DrillingError(f"the joint length must be a positive number, got {joint_length!r}")
+    L = float(depth)
+    n = math.ceil(L / joint_length * (1 - 1e-12))
+    return np.concatenate([[0.0], L - joint_length * np.arange(n - 1, 0, -1), [L]])
+
+
+def joint_side_forces(td: TorqueDrag, joint_length: float = JOINT_LENGTH) -> dict:
+    """The wall's force on each joint, ``integral of p dS`` over it (``p`` the wall force per unit MD, the contact
+    law's pressure), by Gauss-Legendre with 16 points on every piece between the mesh's breakpoints and the joints'
+    ends (a point contact's peak spans a few pieces: 8 points leave 1e-5 of the total, a trapezoid rule on 16 points
+    per piece 4e-4). Arrays from the rig down: ``top``, ``bottom`` (MD, m), ``side_force`` (N), ``max_pressure``
+    (N/m, the largest ``p`` at those points of the joint); their sum is the string's whole side force."""
+    sysm, x = td.system, td.x
+    edges = joint_edges(td.depth, joint_length)
+    cuts = np.union1d(sysm.disc.breakpoints, edges)
+    g, wg = np.polynomial.legendre.leggauss(16)
+    mid, half = 0.5 * (cuts[1:] + cuts[:-1]), 0.5 * np.diff(cuts)
+    S = (mid[:, None] + half[:, None] * g[None, :]).ravel()
+    P = sysm.model.contact(sysm.disc, x, td.params, S=S)["pressure"].reshape(mid.size, g.size)
+    joint = np.searchsorted(edges, mid, side="right") - 1   # the joint each piece lies in
+    force = np.bincount(joint, weights=half * (P @ wg), minlength=edges.size - 1)
+    peak = np.zeros(edges.size - 1)
+    np.maximum.at(peak, joint, P.max(axis=1))
+    return dict(top=edges[:-1], bottom=edges[1:], side_force=force, max_pressure=peak)
 
 
 # --------------------------------------------------------------------------

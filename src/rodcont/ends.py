@@ -309,7 +309,7 @@ def axial_force_and_torque(model, disc, x, p, S) -> tuple:
     p = disc.full_params(x, p)
     z = (disc.jet_matrix(S) @ x).reshape(model.problem.jet_size, S.size)
     m, _, _, d3 = model._axial_quantities(S, z, p)
-    return _dot(z[Jet.F], d3), -m
+    return _dot(z[Jet.F], d3), 0.0 - m  # not -m: a string at rest has m = 0, and -0.0 printed as a torque misleads
 
 
 def hook_load(model, disc, x, p) -> float:

@@ -147,12 +147,27 @@ def echo_config(ctx) -> None:
         click.echo(f"#   {line}")
 
 
+# what a trip (trace --string ... --param depth) reads besides the drill-string options
+TRIP_KEYS = ("conduit", "param", "prange")
+
+
 def _drop_drilling_or_rod(params: dict) -> None:
     """``solve`` without --string runs no drill string (its options are not echoed); with --string, the
-    string's files and operation are the problem, not the rod, its loads and its mesh."""
+    string's files and operation are the problem, not the rod, its loads and its mesh; a trip (``trace``) takes
+    none of the rod's trace options, nor a depth (its range is the depth); weight and torque on bit only drilling."""
     if "string" not in params:
         return
-    drop = DRILLING_KEYS if params["string"] is None else (
-        CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error"))
-    for name in drop:
-        params.pop(name, None)
+    if params["string"] is None:
+        for name in DRILLING_KEYS:
+            params.pop(name, None)
+        return
+    trip = "prange" in params
+    keep = set(DRILLING_KEYS) - {"depth", "joints"} | set(TRIP_KEYS) if trip else None
+    rod = CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error")
+    for name in list(params):
+        if (keep is not None and name not in keep and name not in _CONFIG_SKIP) or name in rod:
+            params.pop(name, None)
+    op = params.get("operation") or ("slack-off" if trip else None)
+    for name in ("wob", "bit_torque"):
+        if op != "drill" and not params.get(name):
+            params.pop(name, None)

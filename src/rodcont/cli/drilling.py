@@ -2,10 +2,10 @@
 
 * :func:`drilling_options`: the options ``solve`` (and ``trace``) take for a drill string in a well:
   ``--operation``, ``--trip-speed``, ``--rpm``, ``--friction``, ``--string``, ``--mud-density``, ``--wob``,
-  ``--bit-torque``, ``--depth``. With ``--string`` the command solves the string with its bit at ``--depth``
-  in the well file given as ``--conduit`` (a ``[well]`` file, ``examples/well_s3d.toml``): call
-  :func:`run_drilling_solve` with the parsed values; it prints ``name value`` lines (``hook_load``,
-  ``surface_torque``, ...).
+  ``--bit-torque``, ``--depth``, ``--joint-length`` (9.14 m), ``--joints FILE.csv`` (solve). With ``--string``
+  the command solves the string with its bit at ``--depth`` in the well file given as ``--conduit`` (a ``[well]``
+  file, ``examples/well_s3d.toml``): call :func:`run_drilling_solve` with the parsed values; it prints
+  ``name value`` lines (``hook_load``, ``surface_torque``, ..., the side force per length and per joint).
 * :func:`run_drilling_trace`: ``trace --param depth --range A B --string S.toml --conduit WELL.toml``, the trip
   in bit depth (call it with the parsed values, the range, ``--out`` and ``--overwrite``).
 * :func:`broomstick_command`: ``rodcont broomstick WELL.toml --string S.toml --friction 0.15 0.25 0.35
@@ -23,7 +23,9 @@ import click
 
 # rodcont.loads.OPERATIONS' names (not imported: it loads numpy, and rodcont --version does not)
 OPERATIONS = ("pick-up", "slack-off", "rotate", "drill", "static")
-DRILLING_KEYS = ("operation", "trip_speed", "rpm", "friction", "string", "mud_density", "wob", "bit_torque", "depth")
+DRILLING_KEYS = ("operation", "trip_speed", "rpm", "friction", "string", "mud_density", "wob", "bit_torque", "depth",
+                 "joint_length", "joints")
+JOINT_LENGTH = 9.14  # rodcont.drilling.JOINT_LENGTH (not imported: it loads numpy)
 
 
 def drilling_options(f):
@@ -41,6 +43,10 @@ def drilling_options(f):
         click.option("--wob", type=float, default=0.0, show_default=True, help="weight on bit, N (drill)"),
         click.option("--bit-torque", type=float, default=0.0, show_default=True, help="bit torque, N m (drill)"),
         click.option("--depth", type=float, default=None, help="bit measured depth, m (default: the survey's end)"),
+        click.option("--joint-length", type=float, default=JOINT_LENGTH, show_default=True,
+                     help="length of a joint of pipe, m (the side force per joint; joints counted from the bit up)"),
+        click.option("--joints", type=click.Path(dir_okay=False), default=None,
+                     help="write the side force of every joint to FILE.csv (solve)"),
     ]
     for opt in reversed(opts):
         f = opt(f)
@@ -70,11 +76,13 @@ def _check(name: str, v, positive=False, nonnegative=False):
     return v
 
 
-def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo):
+def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overwrite: bool = False):
     """Solve the string of ``values["string"]`` in the well file ``conduit`` (``solve --conduit WELL.toml
     --string S.toml ...``) and print ``name value`` lines: ``depth``, ``operation``, ``friction``,
-    ``hook_load`` (N), ``surface_torque`` (N m), ``side_force`` (N), ``contact_zones``, ``error``, ``N``.
-    Returns the :class:`rodcont.drilling.TorqueDrag`."""
+    ``hook_load`` (N), ``surface_torque`` (N m), ``side_force`` (N), ``contact_zones``, ``error``, ``N``, the largest
+    side force per length and per joint with their MD (``--joint-length``, :func:`rodcont.drilling.joint_side_forces`);
+    ``values["joints"]``: the joints' table as CSV (:func:`write_joints`). Returns the
+    :class:`rodcont.drilling.TorqueDrag`."""
     from ..drilling import DrillingError, torque_and_drag
     from ..drivers.solve import ConvergenceError
     if conduit is None:
@@ -82,6 +90,14 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo):
     well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
     op = values.get("operation") or ("drill" if values.get("wob") or values.get("bit_torque") else "static")
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
+    joint_length = _joint_length(values)
+    if values.get("joints") is not None:
+        from ..branchfile import BranchFileError, check_output
+        try:
+            check_output(values["joints"], _inputs(conduit, values["string"], well), overwrite=overwrite,
+                         what="--joints")
+        except (BranchFileError, ValueError, OSError) as exc:
+            raise click.UsageError(str(exc)) from None
     try:
         r = torque_and_drag(well, string, depth, op, mu=_check("friction", values.get("friction"), nonnegative=True),
                             wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
@@ -95,7 +111,54 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo):
                     ("hook_load", r.hook_load), ("surface_torque", r.surface_torque), ("side_force", r.side_force),
                     ("contact_zones", len(r.zones)), ("error", r.error), ("N", r.N)):
         echo(f"{name} {v!r}" if isinstance(v, float) else f"{name} {v}")
+    _echo_joints(r, joint_length, values.get("joints"), echo)
     return r
+
+
+def _joint_length(values: dict) -> float:
+    v = values.get("joint_length")
+    return JOINT_LENGTH if v is None else _check("joint-length", v, positive=True)
+
+
+def _echo_joints(r, joint_length: float, path: str | None, echo) -> None:
+    """The largest side force per unit length and per joint, with their MD (the joint's top and bottom); the
+    table of every joint to ``path`` (CSV) when given."""
+    import numpy as np
+
+    from ..drilling import joint_side_forces
+    P, S = r.profile["pressure"], r.profile["S"]
+    i = int(np.argmax(P))
+    echo(f"max_side_force_per_length {float(P[i])!r}")
+    echo(f"max_side_force_per_length_md {float(S[i])!r}")
+    j = joint_side_forces(r, joint_length)
+    k = int(np.argmax(j["side_force"]))
+    echo(f"joint_length {joint_length!r}")
+    echo(f"max_joint_side_force {float(j['side_force'][k])!r}")
+    echo(f"max_joint_side_force_md {float(j['top'][k])!r} {float(j['bottom'][k])!r}")
+    if path is not None:
+        write_joints(j, path)
+        echo(f"joints {path}")
+
+
+def write_joints(j: dict, path: str) -> None:
+    """The joints' table as CSV, from the bit up: ``joint`` (1 at the bit), ``md_top``, ``md_bottom`` (m),
+    ``side_force`` (N), ``max_side_force_per_length`` (N/m); written whole, then renamed over ``path``."""
+    from ..safeio import commit, discard
+    tmp = f"{path}.tmp{os.getpid()}"
+    rows = ["joint,md_top,md_bottom,side_force,max_side_force_per_length"]
+    n = j["top"].size
+    for i in range(n - 1, -1, -1):
+        rows.append(",".join([str(n - i)] + [repr(float(j[key][i])) for key in ("top", "bottom", "side_force",
+                                                                                  "max_pressure")]))
+    try:
+        with open(tmp, "w") as f:
+            f.write("\n".join(rows) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        commit(tmp, path)
+    except BaseException:
+        discard(tmp)
+        raise
 
 
 def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, out: str | None,
@@ -127,7 +190,9 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     try:
         br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
                   mu=_check("friction", values.get("friction"), nonnegative=True),
-                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"))
+                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
+                  wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
+                  bit_torque=values.get("bit_torque") or 0.0, joint_length=_joint_length(values))
     except (DrillingError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None
     except ConvergenceError as exc:

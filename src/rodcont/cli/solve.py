@@ -72,7 +72,7 @@ def _solve_string(a) -> None:
                             f"weight, the operation, --wob and --bit-torque; drop --{name}")
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("--T is not an option of a drill string (--string): drop it")
-    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS})
+    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, overwrite=a.overwrite)
 
 
 def _solve_rod(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ,

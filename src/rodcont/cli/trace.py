@@ -30,7 +30,7 @@ from .drilling import DRILLING_KEYS, drilling_options, run_drilling_trace
 from .options import check_number, rod_options
 from .progress import Interrupts, Progress
 from .tables import fold_table, fold_warnings
-from .trace_options import given_options, rod_changes, trace_kwargs, trace_options
+from .trace_options import OPTION_SOURCES, given_options, rod_changes, trace_kwargs, trace_options
 
 
 @main_group.command()
@@ -107,10 +107,14 @@ def _trace_string(a) -> None:
     (:func:`.drilling.run_drilling_trace`); the rod's own trace options do not apply to it."""
     if a.string is None:
         raise UserError("--param depth is a trip of a drill string: give --string S.toml and --conduit WELL.toml")
-    for name in ("start", "resume_file", "from_straight", "from_critical", "l0", "torque", "depth"):
+    for name in ("start", "resume_file", "from_straight", "from_critical", "l0", "torque", "depth", "joints"):
         if getattr(a, name) not in (None, False):
             raise UserError(f"--{name.replace('_file', '').replace('_', '-')} is not an option of a trip "
                             f"(--string): drop it")
+    rod_and_trace = [n for sources in OPTION_SOURCES.values() for n in sources if n != "prange"]
+    said = explicit(*rod_and_trace, "direction", "gamma", "w", "EI", "GJ", "EA", "L", "N", "k", "reference")
+    if said:  # a trip marches in depth with the string's own data: these would be ignored
+        raise UserError(f"--{said[0].replace('_', '-')} is not an option of a trip (--string): drop it")
     run_drilling_trace(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, a.param, a.prange, a.out,
                        a.overwrite)
 

@@ -24,7 +24,8 @@ def broom_job(well, string, depths, operation: str, mu: float, options: dict) ->
     from ..drilling import buckling_ratio, soft_string, torque_and_drag
     n = len(depths)
     out = {key: np.full(n, np.nan) for key in ("hook_load", "surface_torque", "soft_hook_load",
-                                               "soft_surface_torque", "side_force", "error", "N", "buckling_ratio")}
+                                               "soft_surface_torque", "side_force", "error", "N", "buckling_ratio",
+                                               "max_compression")}
     out["failures"] = []
     t0 = time.perf_counter()
     for i, d in enumerate(depths):
@@ -33,6 +34,7 @@ def broom_job(well, string, depths, operation: str, mu: float, options: dict) ->
             out["hook_load"][i], out["surface_torque"][i] = r.hook_load, r.surface_torque
             out["side_force"][i], out["error"][i], out["N"][i] = r.side_force, r.error, r.N
             out["buckling_ratio"][i] = float(np.max(buckling_ratio(r)))
+            out["max_compression"][i] = max(0.0, -float(np.min(r.profile["axial_force"])))
         except Exception as exc:  # noqa: BLE001 - one failing depth is reported, the others go on
             out["failures"].append((float(d), str(exc)))
         out["soft_hook_load"][i], out["soft_surface_torque"][i] = soft_string(well, string, float(d), operation, mu=mu)
@@ -43,7 +45,8 @@ def broom_job(well, string, depths, operation: str, mu: float, options: dict) ->
 @dataclass
 class Broomstick:
     """Arrays ``(len(depths), len(operations), len(mus))``: ``hook_load``, ``surface_torque``, their soft-string
-    estimates ``soft_hook_load``, ``soft_surface_torque``, ``side_force``, ``error``, ``N``; ``failures``
+    estimates ``soft_hook_load``, ``soft_surface_torque``, ``side_force``, ``error``, ``N``, the string's largest
+    ``buckling_ratio`` and ``max_compression`` (N, 0 in tension); ``failures``
     ``[(operation, mu, depth, reason)]``, ``elapsed`` (s) per job."""
 
     depths: np.ndarray
@@ -139,9 +142,10 @@ def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None
         raise
 
 
-def plot_broomstick(b: Broomstick, path: str) -> None:
+def plot_broomstick(b: Broomstick, path: str) -> list:
     """Hook load (kN) against bit depth, one line per operation and friction factor, the soft string dashed;
-    the rotating surface torque (kN m) against depth beside it."""
+    the rotating surface torque (kN m) against depth beside it; the buckling onsets (:func:`buckling_onsets`) marked
+    on each hook-load curve. Returns the markers drawn: ``(label, operation, mu, hook_load N, depth m)``."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -156,6 +160,7 @@ def plot_broomstick(b: Broomstick, path: str) -> None:
             if op == "rotate":
                 axt.plot(b.surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, label=f"mu {mu:g}")
                 axt.plot(b.soft_surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, ls="--")
+    markers = []
     if "buckling_ratio" in b.data:  # where the string first buckles along each curve: o sinusoidal, x helical
         for (label, at), marker in zip(buckling_onsets(b).items(), ("o", "x")):
             for i, j in np.ndindex(*at.shape):
@@ -163,7 +168,8 @@ def plot_broomstick(b: Broomstick, path: str) -> None:
                     H = np.interp(at[i, j], b.depths, b.hook_load[:, i, j]) if b.depths[-1] > b.depths[0] else \
                         np.interp(at[i, j], b.depths[::-1], b.hook_load[::-1, i, j])
                     ax.plot([H / 1e3], [at[i, j]], marker=marker, color="k", ms=6, ls="none",
-                            label=label.replace("_", " ") if (i, j) == (0, 0) else None)
+                            label=label.replace("_", " ") if not any(m[0] == label for m in markers) else None)
+                    markers.append((label, b.operations[i], b.mus[j], float(H), float(at[i, j])))
     ax.set_xlabel("hook load (kN)")
     ax.set_ylabel("bit measured depth (m)")
     ax.invert_yaxis()
@@ -182,3 +188,4 @@ def plot_broomstick(b: Broomstick, path: str) -> None:
         raise
     finally:
         plt.close(fig)
+    return markers

@@ -11,7 +11,8 @@ iterations from it for steps of 0.1-5 m, and is slower than a cold start on the 
 Events along a trip: ``lock_up`` where the hook load reaches zero in slack-off (the string can no longer be pushed
 in: located by the secant in depth), and the end of the trip where no equilibrium is found at the next depth even
 with its step halved four times (a fold of the trip in depth). The branch table (and file) has per point ``depth``,
-``hook_load``, ``surface_torque``, ``side_force``, ``min_gap``, ``contact_zones``, ``T`` and ``join_unknowns``.
+``hook_load``, ``surface_torque``, ``side_force``, ``max_joint_side_force``, ``min_gap``, ``contact_zones``, ``T`` and
+``join_unknowns``.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
 from ..result import Status
 
-TRIP_COLUMNS = ("depth", "T", "join_unknowns", "buckling_ratio") + CONTACT_COLUMNS + DRILLING_COLUMNS
+TRIP_COLUMNS = ("depth", "T", "join_unknowns", "buckling_ratio", "max_joint_side_force") + CONTACT_COLUMNS + \
+    DRILLING_COLUMNS
 #: buckling events along a trip: label, the buckling ratio's level (rodcont.drilling.buckling_ratio)
 BUCKLING_EVENTS = (("sinusoidal_buckling", 1.0), ("helical_buckling", 2.0 ** 0.5))
 
@@ -39,19 +41,22 @@ def trip_depths(depth_range, operation: str, points: int) -> np.ndarray:
     return d[::-1] if operation == "pick-up" else d
 
 
-def trip_row(r, origin: float) -> dict:
-    """The branch row of the equilibrium ``r`` (a :class:`rodcont.drilling.TorqueDrag`)."""
-    from ..drilling import _join_unknowns, buckling_ratio
+def trip_row(r, origin: float, joint_length: float = 9.14) -> dict:
+    """The branch row of the equilibrium ``r`` (a :class:`rodcont.drilling.TorqueDrag`); ``max_joint_side_force``
+    the largest wall force on one joint of ``joint_length`` (:func:`rodcont.drilling.joint_side_forces`)."""
+    from ..drilling import _join_unknowns, buckling_ratio, joint_side_forces
     sysm = r.system
     out = sysm.outputs(r.x, sysm.value())
     out.update(depth=r.depth, T=float(sysm.value()), error=r.error, unstable_modes=-1, arclength=abs(r.depth - origin),
                dphi_ds=0.0, join_unknowns=_join_unknowns(sysm), buckling_ratio=float(np.max(buckling_ratio(r))),
-               kind="regular", located=True)
+               kind="regular", located=True,
+               max_joint_side_force=float(np.max(joint_side_forces(r, joint_length)["side_force"])))
     return out
 
 
 def trip(well, string, depth_range, operation: str = "slack-off", *, points: int = 11, mu=None, out: str | None = None,
-         overwrite: bool = False, meta: dict | None = None, warm: bool = False, **options) -> Branch:
+         overwrite: bool = False, meta: dict | None = None, warm: bool = False, joint_length: float = 9.14,
+         **options) -> Branch:
     """The trip of ``string`` in ``well`` over ``depth_range = (A, B)`` (m, bit MD) at ``points`` depths for
     ``operation`` (friction factor ``mu``, default the well's; ``options`` go to
     :func:`rodcont.drilling.torque_and_drag`); ``out``: its branch file. ``warm``: start each depth from the
@@ -67,7 +72,7 @@ def trip(well, string, depth_range, operation: str = "slack-off", *, points: int
     writer, recorder = _open(out, overwrite, attrs, branch, sysm)
     status, message = Status.BOUND, f"parameter bound depth = {depths[-1]:g} reached"
     try:
-        prev = _record(recorder, first, depths[0], "start")
+        prev = _record(recorder, joint_length, first, depths[0], "start")
         for d in depths[1:]:
             r, why = _advance(well, string, prev, float(d), operation, mu, warm, options)
             if r is None:
@@ -77,17 +82,17 @@ def trip(well, string, depth_range, operation: str = "slack-off", *, points: int
                 if _ratio(prev) < level <= _ratio(r):
                     ev = _locate(well, string, prev, r, lambda q, v=level: _ratio(q) - v, operation, mu, warm,
                                  options)
-                    _record(recorder, ev, depths[0], f"event:{label}",
+                    _record(recorder, joint_length, ev, depths[0], f"event:{label}",
                             f"{label.replace('_', ' ')} at depth {ev.depth:.6g} m: the compression reaches "
                             f"{level:.4g} times the Dawson-Paslay load somewhere along the string")
             if operation == "slack-off" and r.hook_load <= 0 < prev.hook_load:
                 lock = _lock_up(well, string, prev, r, operation, mu, warm, options)
-                _record(recorder, lock, depths[0], "event:lock_up",
+                _record(recorder, joint_length, lock, depths[0], "event:lock_up",
                         f"lock-up at depth {lock.depth:.6g} m: the hook load reaches zero (the string cannot be "
                         f"pushed further in)")
                 status, message = Status.EVENT, f"lock-up at depth {lock.depth:.6g} m"
                 break
-            prev = _record(recorder, r, depths[0], "regular" if d != depths[-1] else "bound")
+            prev = _record(recorder, joint_length, r, depths[0], "regular" if d != depths[-1] else "bound")
     finally:
         branch.status, branch.message = status, message
         if writer is not None:
@@ -131,8 +136,8 @@ def _open(out, overwrite, attrs, branch, sysm):
     return writer, Recorder(branch, writer, group)
 
 
-def _record(recorder, r, origin, kind, message=""):
-    row = dict(trip_row(r, origin), kind=kind)
+def _record(recorder, joint_length, r, origin, kind, message=""):
+    row = dict(trip_row(r, origin, joint_length), kind=kind)
     x = r.system.stored(r.x)
     tangent = np.append(np.zeros(x.size), 1.0)  # along the parameter: a restart starts by a step in depth
     recorder.add_row(row, x, tangent, r.system.disc.breakpoints, message)
