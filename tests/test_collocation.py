@@ -530,11 +530,15 @@ def test_chord_solve_reaches_newtons_root_with_fewer_factorisations_on_bratu():
 def test_chord_solve_falls_back_on_newtons_line_search_and_reports_failure():
     """atan(x) = 0 from x = 3: the full Newton step overshoots to a larger residual, so the first steps are
     damped (each on a fresh Jacobian) before the chord takes over; x^2 + 1 = 0 has no root (F'(0) singular)."""
-    lin = lambda x: (np.arctan(x), sp.csc_matrix(np.diag(1.0 / (1.0 + x * x))))
+    def lin(x):
+        return np.arctan(x), sp.csc_matrix(np.diag(1.0 / (1.0 + x * x)))
+
     r = chord_solve(lin, np.arctan, np.array([3.0]), tol=1e-13)
     _check_result(r)
     assert r.converged and abs(r.x[0]) < 1e-12 and r.factorisations >= 2
-    lin2 = lambda x: (x ** 2 + 1.0, sp.csc_matrix(np.diag(2.0 * x)))
+    def lin2(x):
+        return x ** 2 + 1.0, sp.csc_matrix(np.diag(2.0 * x))
+
     r = chord_solve(lin2, lambda x: x ** 2 + 1.0, np.array([0.0]))
     assert not r.converged and "singular" in r.message
     r = chord_solve(lin2, lambda x: x ** 2 + 1.0, np.array([0.3]), max_iter=5)
