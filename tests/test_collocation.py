@@ -34,6 +34,7 @@ from rodcont.collocation import (
     gauss_points,
     newton_solve,
 )
+from rodcont.linalg import chord_solve
 
 NOP = np.zeros(0)  # parameter vector of problems without parameters
 
@@ -507,6 +508,46 @@ def test_newton_solve_reports_singular_jacobian_and_iteration_limit():
     lin2 = lambda x: (x ** 2 - 2.0, sp.csc_matrix(np.diag(2.0 * x)))
     r = newton_solve(lin2, lambda x: x ** 2 - 2.0, np.array([1.0]), tol=1e-14)
     assert r.converged and abs(r.x[0] - np.sqrt(2)) < 1e-15 * 4 and r.iterations <= 7
+
+
+def test_chord_solve_reaches_newtons_root_with_fewer_factorisations_on_bratu():
+    """The chord (a frozen Jacobian while the steps contract) on Bratu's lower branch at lam = 3 from u = 0: the
+    closed-form solution to the discretisation's accuracy, Newton's discrete root to the tolerance's order,
+    and fewer LUs than Newton's iterations (each one LU)."""
+    c = Collocation(BRATU, 16, 5)
+    p = np.array([3.0])
+    lin, res = (lambda x: c.linearise(x, p)[:2]), (lambda x: c.residual(x, p))
+    newton = newton_solve(lin, res, np.zeros(c.size), tol=1e-12)
+    chord = chord_solve(lin, res, np.zeros(c.size), tol=1e-12)
+    _check_result(chord)
+    assert newton.converged and chord.converged, chord.message
+    assert np.max(np.abs(chord.x - newton.x)) <= 1e-11 * (1 + np.max(np.abs(newton.x)))
+    S = np.linspace(0, 1, 41)
+    assert np.max(np.abs(c.evaluate(chord.x, S, 0) - bratu_exact(3.0)(S))) < 1e-8
+    assert 1 <= chord.factorisations < newton.iterations, (chord.factorisations, newton.iterations)
+
+
+def test_chord_solve_falls_back_on_newtons_line_search_and_reports_failure():
+    """atan(x) = 0 from x = 3: the full Newton step overshoots to a larger residual, so the first steps are
+    damped (each on a fresh Jacobian) before the chord takes over; x^2 + 1 = 0 has no root (F'(0) singular)."""
+    def lin(x):
+        return np.arctan(x), sp.csc_matrix(np.diag(1.0 / (1.0 + x * x)))
+
+    r = chord_solve(lin, np.arctan, np.array([3.0]), tol=1e-13)
+    _check_result(r)
+    assert r.converged and abs(r.x[0]) < 1e-12 and r.factorisations >= 2
+    def lin2(x):
+        return x ** 2 + 1.0, sp.csc_matrix(np.diag(2.0 * x))
+
+    r = chord_solve(lin2, lambda x: x ** 2 + 1.0, np.array([0.0]))
+    assert not r.converged and "singular" in r.message
+    r = chord_solve(lin2, lambda x: x ** 2 + 1.0, np.array([0.3]), max_iter=5)
+    _check_result(r)
+    assert not r.converged
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = chord_solve(lambda x: (np.log(x), sp.csc_matrix(np.diag(1.0 / x))), np.log, np.array([-1.0]))
+    assert not r.converged and "finite" in r.message
 
 
 def _off_domain_problem(which):

@@ -298,6 +298,57 @@ def test_a_start_deeper_than_the_guard_is_stiffened_and_a_given_law_is_kept_and_
     assert a == b == 0.0 and depth > 10 * MAX_PENETRATION
 
 
+@pytest.mark.parametrize("gamma,N,c", [(0.1, 40, 0.02), (1.0, 60, 0.05), (0.1, 200, 0.01)])
+def test_the_chord_homotopy_settles_where_newtons_does(gamma, N, c):
+    """settle_in_conduit solves its stages in the smoothing by the chord (a frozen Jacobian, issue 24): the
+    equilibrium in the pipe is the one the same stages solved by damped Newton give, to 1e-10 of its size."""
+    import dataclasses
+
+    from rodcont.drivers.solve import settle_in_conduit
+    s = RodSystem(RodParameters(), gamma=gamma, N=N, wall=Wall(c))
+    p, wall = s.params(0.0), s.model.wall
+    x0 = s.model.initial_guess(s.disc, s.base[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        x = settle_in_conduit(s, x0, p)
+        y = x0
+        for eps in (0.1, 1e-3, wall.eps):
+            s.model.wall = dataclasses.replace(wall, eps=eps)
+            r = s.disc.newton(y, p, max_iter=60)
+            assert r.converged, r.message
+            y = r.x
+        s.model.wall = wall
+    assert wall.eps == 1e-5 and np.max(np.abs(x - y)) <= 1e-10 * np.max(np.abs(y))
+
+
+def test_a_stage_the_chord_fails_is_newtons(monkeypatch):
+    """Where the chord does not converge (here: made to fail at once), settle_in_conduit solves the stage by
+    Newton from the stage's start: the equilibrium is then bitwise that of the stages solved by Newton."""
+    import dataclasses
+
+    import rodcont.drivers.solve as solve_driver
+    from rodcont.linalg import NewtonResult
+    failed = []
+
+    def chord_fails(linearise, residual, x0, **kw):
+        failed.append(1)
+        return NewtonResult(x0, False, 60, 1.0, 1.0, "no convergence in 60 iterations")
+
+    monkeypatch.setattr(solve_driver, "chord_solve", chord_fails)
+    s = RodSystem(RodParameters(), gamma=0.1, N=40, wall=Wall(0.02))
+    p, wall = s.params(0.0), s.model.wall
+    x0 = s.model.initial_guess(s.disc, s.base[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        x = solve_driver.settle_in_conduit(s, x0, p)
+        y = x0
+        for eps in (0.1, 1e-3, wall.eps):
+            s.model.wall = dataclasses.replace(wall, eps=eps)
+            y = s.disc.newton(y, p, max_iter=60).x
+        s.model.wall = wall
+    assert len(failed) == 3 and np.array_equal(x, y)
+
+
 def test_a_trace_says_where_the_rod_goes_deeper_than_the_guard(tmp_path):
     """The Gamma = 1 rod in a pipe of clearance 0.02 under the trace's own law (eps = 1e-3, P = w), traced in w
     from the sag twisted by Phi = 1: its point contact presses harder and, between two stored points, goes deeper

@@ -14,7 +14,8 @@ Knows nothing of rods or of collocation. Three pieces:
   checked by its backward error and refined; the tracker's default
   (:func:`bordered_solver`).
 * :func:`newton_solve`: damped Newton returning a :class:`NewtonResult`
-  (a failure is data, not an exception).
+  (a failure is data, not an exception); :func:`chord_solve`, the same with the Jacobian frozen while
+  the steps contract.
 
 and :class:`HeapTrimmer`, which gives the factorisations' freed memory back to the system.
 """
@@ -283,6 +284,7 @@ class NewtonResult:
     message: str
     lu: object = field(default=None, repr=False)
     corrections: list = field(default_factory=list, repr=False)  # the first two Newton steps
+    factorisations: int = -1  # the LUs made (-1: not counted; newton_solve makes one per iteration)
 
 
 def at_rounding(F: np.ndarray, J, x: np.ndarray, extra: np.ndarray | float = 0.0, factor: float = 1e3) -> bool:
@@ -359,6 +361,71 @@ def newton_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: f
         if lam < 1.0:
             step = np.inf  # a damped step says nothing about the rate
     return NewtonResult(x, False, max_iter, fnorm, step, f"no convergence in {max_iter} iterations")
+
+
+def chord_solve(linearise: Callable, residual: Callable, x0: np.ndarray, tol: float = 1e-10,
+                max_iter: int = 60, max_contraction: float = 0.5, min_damping: float = 1.0 / 64) -> NewtonResult:
+    """Newton with a frozen Jacobian (the chord method) for ``F(x) = 0``, safeguarded as :func:`newton_solve`.
+
+    ``dx_k = -J(x_j)^-1 F(x_k)`` with the LU of the Jacobian at the last point ``x_j`` where it was taken. A chord
+    step is kept while it is at most ``max_contraction`` times the previous step and the max-norm residual does
+    not grow; otherwise the Jacobian is taken afresh at the current point. A step on a fresh Jacobian is a
+    Newton step with :func:`newton_solve`'s line search (halved down to ``min_damping``; after a damped step the
+    Jacobian is taken afresh again) and its test of convergence to rounding. Converged when a full step is
+    below ``tol * (1 + |x|)``, or when the contraction ``q`` of the last two predicts the error left,
+    ``q / (1 - q) |dx_k|``, is. ``iterations`` counts the steps, ``factorisations`` the LUs; ``lu`` is None.
+    """
+    x = np.array(x0, dtype=float)
+    F, J = linearise(x)
+    fnorm, prev = max_norm(F), np.inf
+    floor = 1e-13 * (1.0 + (fnorm if np.isfinite(fnorm) else 0.0))
+    lu, fresh, factorisations, steps = None, True, 0, 0
+
+    def result(converged, message, step=prev):
+        return NewtonResult(x, converged, steps, fnorm, step, message, factorisations=factorisations)
+
+    for _ in range(2 * max_iter):  # a refresh is no step: at most one between two steps
+        if steps >= max_iter:
+            break
+        if not np.all(np.isfinite(F)):
+            return result(False, "residual is not finite")
+        if lu is None:
+            try:
+                lu, factorisations = LU(J), factorisations + 1
+            except SingularMatrix as exc:
+                return result(False, f"singular Jacobian ({exc})")
+        dx = lu.solve(-F)
+        step = max_norm(dx)
+        small = step <= math.sqrt(tol) * (1 + max_norm(x))
+        if fresh and np.isfinite(prev) and small and step > 0.25 * prev and at_rounding(F, J, x):
+            return result(True, "converged (to rounding)", step)
+        Ft = residual(x + dx) if np.isfinite(step) and (fresh or step <= max_contraction * prev) else None
+        ft = max_norm(Ft) if Ft is not None else np.inf
+        ok = np.isfinite(ft) and (ft <= fnorm * (1 + 1e-6) + floor or (fresh and small and ft <= 10 * fnorm + floor))
+        if not ok and not fresh:  # the chord stopped contracting: a fresh Jacobian at the current point
+            F, J = linearise(x)
+            lu, fresh = None, True
+            continue
+        if not np.isfinite(step):
+            return result(False, "Newton step is not finite (singular Jacobian)", step)
+        lam = 1.0
+        while not ok:
+            lam *= 0.5
+            if lam < min_damping:
+                return result(False, "line search failed: the residual does not decrease", step)
+            Ft = residual(x + lam * dx)
+            ft = max_norm(Ft)
+            ok = np.isfinite(ft) and ft <= fnorm * (1 + 1e-6) + floor
+        x, F, fnorm, steps = x + lam * dx, Ft, ft, steps + 1
+        if lam < 1.0:  # a damped step says nothing about the rate: Newton again from there
+            F, J = linearise(x)
+            lu, fresh, prev = None, True, np.inf
+            continue
+        q = step / prev
+        if step <= tol * (1 + max_norm(x)) or (0 < q < 1 and q / (1 - q) * step <= tol * (1 + max_norm(x))):
+            return result(True, "converged", step)
+        prev, fresh = step, False
+    return result(False, f"no convergence in {max_iter} iterations")
 
 
 def scaled_smallest_singular_value(A, iterations: int = 25) -> float:
