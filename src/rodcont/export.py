@@ -425,7 +425,8 @@ def write_csv(fields: dict, path: str, meta: dict | None = None) -> None:
              f"{(meta or {}).get('grid', 'S')}"]
     for key, val in (meta or {}).items():
         lines.append(f"# {key}: {_meta_value(val)}")
-    lines.append("# units: lengths in the unit of L, forces in the unit of EA; per column:")
+    if "units" not in (meta or {}):  # a drill string's meta states its SI units itself
+        lines.append("# units: lengths in the unit of L, forces in the unit of EA; per column:")
     lines.append("# unit: " + ",".join(units))
     lines.append(",".join(names))
 
