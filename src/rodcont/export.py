@@ -35,6 +35,15 @@ In a conduit (a branch file that holds contact data) also, as
                  with (``contact_level P``), else 0
 ===============  ====================================================================
 
+A drill string's file (a trip in bit depth, ``rodcont trace --param depth``, or ``solve --string --out``)
+holds the drilling record (:func:`rodcont.drilling.drilling_record`): each point is rebuilt with the string
+placed at its own depth (:func:`drill_point`), ``S`` is the measured depth from the rig (``S = depth`` at the
+bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the contact columns are
+the drilling ones of :class:`rodcont.drilling.TorqueDrag`'s profile: ``axial_force`` (at ``S = 0`` the hook
+load), ``torque`` ``M = -m`` (at ``S = 0`` the surface torque), ``pressure``, ``gap``, and ``in_contact`` 1 where
+the gap is below 1 % of the clearance. ``grid="mesh"`` samples the solution's own contact grid, on which a
+point contact (a pipe's end on the wall) is seen and the trapezoid rule gives the stored side force.
+
 With ``f = w g`` per unit unstressed length the exported fields satisfy the
 Kirchhoff balance laws ``dF/ds + f = 0`` and ``dM/ds + (dr/ds) x F = 0``
 (to the accuracy of the collocation solution; ``tests/test_export.py``
@@ -225,7 +234,6 @@ def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     model = _model_at(data, p)
     disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
     x = pt["x"]
-    L = float(disc.breakpoints[-1])
     S = _samples(model, disc, x, p, int(samples), grid)
     parts = [_pointwise(model, disc, x, p, S[c]) for c in _chunks(S.size)]
     if model.wall is not None:

@@ -158,6 +158,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, over
     CSV: '#' comment lines (point, rod, units), one header row (S,s,x,y,z,d1_x,...).
     VTK: XML PolyData (.vtp), one polyline with every field as point data, for ParaView;
     --all writes a .pvd time series (timestep = point index) with one .vtp per point.
+    A drill string's file (a trip, solve --string --out): S is the measured depth, x, y, z east, north, up (m),
+    with axial_force, torque (at S = 0 the hook load and the surface torque), pressure, gap and in_contact.
     """
     path, spec_branch, spec_point, diagram = _branch_spec(file)
     if spec_point is not None and point is not None and spec_point.strip() != point.strip():

@@ -126,11 +126,11 @@ def write_point(well, string, td, out: str, overwrite: bool = False, meta: dict 
 def _attrs(first, operation, meta, well, string) -> dict:
     """The root attributes of a trip's file: the rod at the rig, the wall of the first depth, the run, and the
     drilling record that rebuilds every point (:func:`rodcont.drilling.drilling_record`)."""
-    from ..drilling import drilling_record
     import dataclasses
     import json
 
     from .. import __version__
+    from ..drilling import drilling_record
     sysm, rod = first.system, first.system.rod
     wall = dataclasses.replace(sysm.wall, force_scale=sysm.model.contact_scale)
     T = float(sysm.value())
