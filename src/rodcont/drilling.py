@@ -665,3 +665,80 @@ def buckling_ratio(td: TorqueDrag) -> np.ndarray:
     c = td.system.model.wall.clearance_at(S)
     Fs = np.maximum(2.0 * np.sqrt(EI * w * sin_i / c), 1.94 * np.cbrt(EI * w * w))
     return np.where(F < 0, -F / Fs, 0.0)
+
+
+# --------------------------------------------------------------------------
+# The drilling record of a file: what rebuilds each stored point's system
+# --------------------------------------------------------------------------
+#: the version of the record a drill string's file keeps in its ``drilling`` attribute (JSON)
+RECORD_VERSION = 1
+
+
+def _plain_table(v):
+    """A number or MD stations as JSON (a list of pairs), and back (:func:`_table_back`)."""
+    return float(v) if isinstance(v, (int, float)) else [[float(a), float(b)] for a, b in v]
+
+
+def _table_back(v):
+    return float(v) if isinstance(v, (int, float)) else tuple((float(a), float(b)) for a, b in v)
+
+
+def drilling_record(well: Well, string: DrillString, td: TorqueDrag) -> str:
+    """The JSON a drill string's file stores (attribute ``drilling``, :data:`RECORD_VERSION`): the well (survey
+    stations, hole diameter, friction, ``eps``), the string (sections, buoyancy factor), the operation, the
+    friction factor used, WOB, bit torque and ``k``. With a point's depth, mesh, coefficients and contact law's
+    force scale it rebuilds that point's system (:func:`rebuild`)."""
+    import dataclasses
+    import json
+    op = td.operation
+    return json.dumps(dict(
+        version=RECORD_VERSION,
+        well=dict(stations=np.asarray(well.stations, float).tolist(), hole_diameter=_plain_table(well.hole_diameter),
+                  friction=_plain_table(well.friction), eps=float(well.eps), survey=well.survey),
+        string=dict(buoyancy_factor=float(string.buoyancy_factor),
+                    sections=[dataclasses.asdict(s) for s in string.sections]),
+        operation=dict(name=op.name, trip_speed=float(op.trip_speed), rpm=float(op.rpm)),
+        mu=_plain_table(td.mu), wob=float(td.wob), bit_torque=float(td.bit_torque), k=int(td.system.disc.k)))
+
+
+def read_record(text: str) -> dict:
+    """The record of :func:`drilling_record` as objects: ``well``, ``string``, ``operation``, ``mu``, ``wob``,
+    ``bit_torque``, ``k``; a :class:`DrillingError` (one line) for a newer or damaged one."""
+    import json
+    try:
+        d = json.loads(text)
+        if int(d.get("version", 0)) > RECORD_VERSION:
+            raise DrillingError(f"its drilling record is version {d['version']}, newer than this rodcont's "
+                                f"({RECORD_VERSION}): update rodcont")
+        w, s = d["well"], d["string"]
+        well = Well(np.asarray(w["stations"], float), _table_back(w["hole_diameter"]), _table_back(w["friction"]),
+                    float(w["eps"]), w.get("survey"))
+        string = DrillString(tuple(Section(**row) for row in s["sections"]), float(s["buoyancy_factor"]))
+        op = Operation(str(d["operation"]["name"]), float(d["operation"]["trip_speed"]),
+                       float(d["operation"]["rpm"]))
+        return dict(well=well, string=string, operation=op, mu=_table_back(d["mu"]), wob=float(d["wob"]),
+                    bit_torque=float(d["bit_torque"]), k=int(d["k"]))
+    except DrillingError:
+        raise
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise DrillingError(f"damaged drilling record ({type(exc).__name__}: {exc})") from None
+
+
+def rebuild(record: dict, depth: float, breakpoints, coefficients, force_scale: float) -> TorqueDrag:
+    """The stored equilibrium with its bit at ``depth``: the string placed there (:func:`place_string`), its
+    system built as the solve built it (:func:`build_system`, on the stored ``breakpoints`` with the contact
+    law's ``force_scale``) and the stored ``coefficients`` expanded; a :class:`TorqueDrag` (``error`` NaN:
+    not re-estimated)."""
+    from .ends import bit_force
+    from .loads import Friction
+    placed = place_string(record["well"], record["string"], float(depth))
+    op, mu = record["operation"], record["mu"]
+    b = np.asarray(breakpoints, float)
+    sysm = build_system(placed, Friction(mu, placed.radius, op), bit_force(record["wob"]), record["bit_torque"],
+                        record["well"].eps, b.size - 1, record["k"], force_scale=float(force_scale), breakpoints=b)
+    if sysm.disc.breakpoints.size != b.size or not np.allclose(sysm.disc.breakpoints, b, rtol=0, atol=1e-9 * b[-1]):
+        raise DrillingError(f"the stored mesh at depth {depth:g} m does not fit the string placed there")
+    x = sysm.expanded(np.asarray(coefficients, float))
+    if x.size != sysm.disc.size:
+        raise DrillingError(f"the stored solution at depth {depth:g} m does not fit the string placed there")
+    return _result(sysm, x, placed, op, mu, record["wob"], record["bit_torque"], math.nan)

@@ -35,6 +35,15 @@ In a conduit (a branch file that holds contact data) also, as
                  with (``contact_level P``), else 0
 ===============  ====================================================================
 
+A drill string's file (a trip in bit depth, ``rodcont trace --param depth``, or ``solve --string --out``)
+holds the drilling record (:func:`rodcont.drilling.drilling_record`): each point is rebuilt with the string
+placed at its own depth (:func:`drill_point`), ``S`` is the measured depth from the rig (``S = depth`` at the
+bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the contact columns are
+the drilling ones of :class:`rodcont.drilling.TorqueDrag`'s profile: ``axial_force`` (at ``S = 0`` the hook
+load), ``torque`` ``M = -m`` (at ``S = 0`` the surface torque), ``pressure``, ``gap``, and ``in_contact`` 1 where
+the gap is below 1 % of the clearance. ``grid="mesh"`` samples the solution's own contact grid, on which a
+point contact (a pipe's end on the wall) is seen and the trapezoid rule gives the stored side force.
+
 With ``f = w g`` per unit unstressed length the exported fields satisfy the
 Kirchhoff balance laws ``dF/ds + f = 0`` and ``dM/ds + (dr/ds) x F = 0``
 (to the accuracy of the collocation solution; ``tests/test_export.py``
@@ -185,26 +194,47 @@ def _grid_in_s(model, disc, x, p, samples):
     return S
 
 
+#: the sample grids: uniform in S, uniform in s, or the solution's own contact grid
+GRIDS = ("S", "s", "mesh")
+#: points per mesh subinterval of ``grid="mesh"`` (:meth:`rodcont.rod.EulerianRod.contact`'s default grid)
+MESH_POINTS = 16
+
+
+def _samples(model, disc, x, p, samples: int, grid: str) -> np.ndarray:
+    """The points ``S``: ``samples`` uniform in ``S`` or in ``s``; ``grid="mesh"``: :data:`MESH_POINTS` equal
+    pieces of every mesh subinterval and the end (``samples`` unused), the grid on which a solve computes its side
+    force, gap and contact zones: a point contact (a pipe's end on the wall, a peak of a millimetre) falls on
+    it, where a uniform grid of any practical size steps over it."""
+    if grid == "mesh":
+        b = disc.breakpoints
+        t = np.linspace(0.0, 1.0, MESH_POINTS + 1)[:-1]
+        return np.concatenate([(b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), [b[-1]]])
+    L = float(disc.breakpoints[-1])
+    return np.linspace(0.0, L, samples) if grid == "S" else _grid_in_s(model, disc, x, p, samples)
+
+
 def rod_fields(data, label, samples: int = 200, grid: str = "S") -> dict:
     """The fields along the rod at stored point ``label`` of ``data`` (a :class:`BranchData`).
 
     ``label``: point index (from 0, negative from the end), ``F<j>`` or
     ``BP<j>``. ``samples`` points uniform in ``S`` over ``[0, L]``
-    (``grid="S"``) or uniform in ``s`` over ``[0, l0]`` (``grid="s"``).
+    (``grid="S"``) or uniform in ``s`` over ``[0, l0]`` (``grid="s"``), or the
+    solution's contact grid (``grid="mesh"``, :func:`_samples`).
     Returns a dict of arrays (see the module docstring for names and meaning).
     """
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 2 <= samples <= MAX_SAMPLES:
         raise ExportError(f"samples must be an integer in 2..{MAX_SAMPLES}, got {samples!r}")
-    if grid not in ("S", "s"):
-        raise ExportError(f"grid must be 'S' or 's', got {grid!r}")
+    if grid not in GRIDS:
+        raise ExportError(f"grid must be 'S', 's' or 'mesh', got {grid!r}")
     i = data.resolve(label)
+    if is_drill_string(data):
+        return _drill_fields(data, i, int(samples), grid)
     pt = data.point(i)
     p = point_parameters(data, i)
     model = _model_at(data, p)
     disc = model.discretise(breakpoints=pt["breakpoints"], k=int(data.attrs["k"]))
     x = pt["x"]
-    L = float(disc.breakpoints[-1])
-    S = np.linspace(0.0, L, int(samples)) if grid == "S" else _grid_in_s(model, disc, x, p, int(samples))
+    S = _samples(model, disc, x, p, int(samples), grid)
     parts = [_pointwise(model, disc, x, p, S[c]) for c in _chunks(S.size)]
     if model.wall is not None:
         parts = [dict(q, **_contact_fields(model, disc, x, p, q["S"])) for q in parts]
@@ -224,7 +254,7 @@ def _contact_fields(model, disc, x, p, S) -> dict:
 def _pointwise(model, disc, x, p, S) -> dict:
     """Every field but ``s`` at the points ``S`` (the model's centreline, directors, force, torque)."""
     from .rod import Jet
-    EI, GJ, EA = p[3], p[4], p[5]
+    _, EI, GJ, EA = model._stiffness(S, p)  # a drill string's sections: each its own stiffness
     r = model.centreline(disc, x, S)
     D = model.directors(disc, x, S)
     d1, d2, d3 = D[0], D[1], D[2]
@@ -248,10 +278,79 @@ def _pointwise(model, disc, x, p, S) -> dict:
     )
 
 
+# --------------------------------------------------------------------------
+# A drill string's file (a trip in bit depth, or solve --string --out)
+# --------------------------------------------------------------------------
+def is_drill_string(data) -> bool:
+    """A file of a drill string in its well (a trip, ``solve --string --out``, a trace in the bit's force)."""
+    a = data.attrs
+    return data.param == "depth" or "drilling" in a or "join_unknowns" in a or "trip" in a
+
+
+def drill_point(data, i: int):
+    """Stored point ``i`` of a drill string's file rebuilt (:func:`rodcont.drilling.rebuild`): the string placed at
+    the point's depth, its system on the stored mesh and contact law; a one-line :class:`ExportError` for a file
+    written before the drilling record (rodcont before its version 1)."""
+    from .drilling import DrillingError, read_record, rebuild
+    if "drilling" not in data.attrs or data.param != "depth" or "force_scale" not in data.branch:
+        what = "trip file" if data.param == "depth" else "drill string's file (a trace in the bit's force)"
+        raise ExportError(f"{data.label}: this {what} predates the drilling record export rebuilds a point from "
+                          f"(the well, the string and the operation): re-run the trip" if data.param == "depth"
+                          else f"{data.label}: export cannot rebuild this {what}: export a trip "
+                               f"(trace --param depth) or solve --string --out")
+    try:
+        record = read_record(str(data.attrs["drilling"]))
+        return rebuild(record, float(data.branch["depth"][i]), data.meshes[i], data.coefficients[i],
+                       float(data.branch["force_scale"][i]))
+    except DrillingError as exc:
+        raise ExportError(f"{data.label}: point {i}: {exc}") from None
+
+
+def _drill_fields(data, i: int, samples: int, grid: str) -> dict:
+    """:func:`rod_fields` of a drill string's point: ``S`` the measured depth (0 at the rig, the depth at the bit),
+    ``x, y, z`` east, north, up (m; true vertical depth ``-z``), forces in N. Its contact columns as
+    :class:`rodcont.drilling.TorqueDrag`'s profile has them: ``axial_force`` ``F.d3`` and ``torque`` ``M = -m``
+    (:func:`rodcont.ends.axial_force_and_torque`: at ``S = 0`` the hook load and the surface torque),
+    ``pressure`` the wall force per unit MD, ``gap``, ``in_contact`` 1 where the gap is below 1 % of the
+    clearance."""
+    from .ends import axial_force_and_torque
+    td = drill_point(data, i)
+    sysm, x = td.system, td.x
+    model, disc, p = sysm.model, sysm.disc, td.params
+    S = _samples(model, disc, x, p, samples, grid)
+    parts = []
+    for c in _chunks(S.size):
+        q = _pointwise(model, disc, x, p, S[c])
+        con = model.contact(disc, x, p, S=S[c])
+        F, M = axial_force_and_torque(model, disc, x, p, S[c])
+        q.update(axial_force=F, torque=M, pressure=con["pressure"], gap=con["gap"],
+                 in_contact=(con["gap"] <= 0.01 * model.wall.clearance_at(S[c])).astype(float))
+        parts.append(q)
+    out = {key: np.concatenate([q[key] for q in parts]) for key in parts[0]}
+    out["s"] = unstressed_arclength(model, disc, x, p, S)
+    return {key: out[key] for key in FIELD_NAMES if key in out}
+
+
+def _drill_meta(data, i: int, label, samples: int, grid: str) -> dict:
+    from . import __version__
+    b = data.branch
+    meta = dict(rodcont_version=__version__, source=os.path.abspath(data.path), point=int(i), label=str(label),
+                kind=str(b["kind"][i]), param="depth", depth=float(b["depth"][i]),
+                operation=str(data.attrs.get("operation", "")),
+                S="measured depth from the rig (m)", axes="x east, y north, z up (m; true vertical depth = -z)",
+                units="SI: m, N, N m", samples=int(samples), grid=grid)
+    for name in ("hook_load", "surface_torque", "side_force", "min_gap", "force_scale", "error"):
+        if name in b:
+            meta[name] = float(b[name][i])
+    return meta
+
+
 def point_meta(data, label, samples: int, grid: str = "S") -> dict:
     """What a reader of an exported file needs to know about its point (scalars and short strings)."""
     from . import __version__
     i = data.resolve(label)
+    if is_drill_string(data):
+        return _drill_meta(data, i, label, samples, grid)
     p = point_parameters(data, i)
     rod = data.rod
     meta = dict(rodcont_version=__version__, source=os.path.abspath(data.path))
@@ -334,7 +433,8 @@ def write_csv(fields: dict, path: str, meta: dict | None = None) -> None:
              f"{(meta or {}).get('grid', 'S')}"]
     for key, val in (meta or {}).items():
         lines.append(f"# {key}: {_meta_value(val)}")
-    lines.append("# units: lengths in the unit of L, forces in the unit of EA; per column:")
+    if "units" not in (meta or {}):  # a drill string's meta states its SI units itself
+        lines.append("# units: lengths in the unit of L, forces in the unit of EA; per column:")
     lines.append("# unit: " + ",".join(units))
     lines.append(",".join(names))
 
@@ -449,7 +549,7 @@ def export_point(data, label, path: str, fmt: str, samples: int = 200, grid: str
     if fmt not in WRITERS:
         raise ExportError(f"unknown format {fmt!r} (csv, vtk or npz)")
     fields = rod_fields(data, label, samples, grid)
-    WRITERS[fmt](fields, path, point_meta(data, label, samples, grid))
+    WRITERS[fmt](fields, path, point_meta(data, label, int(np.size(fields["S"])), grid))
     return fields
 
 
@@ -493,6 +593,9 @@ def export_branch(data, path: str, fmt: str, samples: int = 200, grid: str = "S"
     n = len(data)
     if n == 0:
         raise ExportError(f"{data.label} holds no point")
+    if fmt == "npz" and grid == "mesh":
+        raise ExportError("--all --grid mesh: each point has its own mesh, so its arrays cannot be stacked in one "
+                          ".npz: write a .pvd series (--format vtk) or sample uniformly (--grid S)")
     if fmt == "npz" and not overwrite and os.path.lexists(path):
         raise ExportError(f"{path} exists: choose another -o or add --overwrite to replace it")
     if fmt == "vtk":

@@ -76,12 +76,14 @@ def _check(name: str, v, positive=False, nonnegative=False):
     return v
 
 
-def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overwrite: bool = False):
+def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overwrite: bool = False,
+                       out: str | None = None):
     """Solve the string of ``values["string"]`` in the well file ``conduit`` (``solve --conduit WELL.toml
     --string S.toml ...``) and print ``name value`` lines: ``depth``, ``operation``, ``friction``,
     ``hook_load`` (N), ``surface_torque`` (N m), ``side_force`` (N), ``contact_zones``, ``error``, ``N``, the largest
     side force per length and per joint with their MD (``--joint-length``, :func:`rodcont.drilling.joint_side_forces`);
-    ``values["joints"]``: the joints' table as CSV (:func:`write_joints`). Returns the
+    ``values["joints"]``: the joints' table as CSV (:func:`write_joints`); ``out``: the equilibrium as a one-point
+    file in a trip's layout (:func:`rodcont.drivers.trip.write_point`, read by ``rodcont export``). Returns the
     :class:`rodcont.drilling.TorqueDrag`."""
     from ..drilling import DrillingError, torque_and_drag
     from ..drivers.solve import ConvergenceError
@@ -91,13 +93,17 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     op = values.get("operation") or ("drill" if values.get("wob") or values.get("bit_torque") else "static")
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
     joint_length = _joint_length(values)
-    if values.get("joints") is not None:
-        from ..branchfile import BranchFileError, check_output
+    from ..branchfile import BranchFileError, check_output
+    for path, what in ((values.get("joints"), "--joints"), (out, "--out")):
+        if path is None:
+            continue
         try:
-            check_output(values["joints"], _inputs(conduit, values["string"], well), overwrite=overwrite,
-                         what="--joints")
+            check_output(path, _inputs(conduit, values["string"], well), overwrite=overwrite, what=what)
         except (BranchFileError, ValueError, OSError) as exc:
             raise click.UsageError(str(exc)) from None
+    if out is not None and values.get("joints") is not None and os.path.realpath(out) == os.path.realpath(
+            values["joints"]):
+        raise click.UsageError(f"--out and --joints name the same file {out}: give two names")
     try:
         r = torque_and_drag(well, string, depth, op, mu=_check("friction", values.get("friction"), nonnegative=True),
                             wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
@@ -112,6 +118,11 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
                     ("contact_zones", len(r.zones)), ("error", r.error), ("N", r.N)):
         echo(f"{name} {v!r}" if isinstance(v, float) else f"{name} {v}")
     _echo_joints(r, joint_length, values.get("joints"), echo)
+    if out is not None:
+        from ..drivers.trip import write_point
+        write_point(well, string, r, out, overwrite=overwrite, joint_length=joint_length,
+                    meta=dict(well=os.path.abspath(conduit), string=os.path.abspath(values["string"])))
+        click.echo(f"wrote {out}", err=True)
     return r
 
 

@@ -143,8 +143,9 @@ def _format(output: str, fmt: str | None, all_points: bool) -> str:
 @click.option("--branch", default=None, help="the branch of a diagram file (or FILE.h5:<j>)")
 @click.option("--samples", type=click.IntRange(2, MAX_SAMPLES), default=200, show_default=True,
               help="number of points along the rod")
-@click.option("--grid", type=click.Choice(["S", "s"]), default="S", show_default=True,
-              help="sample uniformly in the reference coordinate S or in the unstressed arclength s")
+@click.option("--grid", type=click.Choice(["S", "s", "mesh"]), default="S", show_default=True,
+              help="sample uniformly in the reference coordinate S or in the unstressed arclength s, or on the "
+                   "solution's mesh (16 points per subinterval, --samples unused: point contacts fall on it)")
 @click.option("--format", "fmt", type=click.Choice(["csv", "vtk", "npz"], case_sensitive=False), default=None,
               help="output format [default: from the suffix of -o: .csv, .vtp/.pvd, .npz]")
 @click.option("-o", "--output", required=True, help="file to write")
@@ -157,6 +158,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, over
     CSV: '#' comment lines (point, rod, units), one header row (S,s,x,y,z,d1_x,...).
     VTK: XML PolyData (.vtp), one polyline with every field as point data, for ParaView;
     --all writes a .pvd time series (timestep = point index) with one .vtp per point.
+    A drill string's file (a trip, solve --string --out): S is the measured depth, x, y, z east, north, up (m),
+    with axial_force, torque (at S = 0 the hook load and the surface torque), pressure, gap and in_contact.
     """
     path, spec_branch, spec_point, diagram = _branch_spec(file)
     if spec_point is not None and point is not None and spec_point.strip() != point.strip():
@@ -177,12 +180,14 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, over
         return _export_series(data, output, fmt, samples, grid, overwrite)
     try:
         i = data.resolve(point)
-        export_point(data, point.strip(), output, fmt, samples, grid)
+        samples = int(export_point(data, point.strip(), output, fmt, samples, grid)["S"].size)
     except (ExportError, BranchFileError) as exc:
         raise UserError(str(exc)) from None
     except OSError as exc:
         raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
-    click.echo(f"wrote {output} (point {i}, Φ = {float(data.branch['phi_L'][i]):.10g}, {samples} samples)")
+    where = (f"depth {float(data.branch['depth'][i]):.10g} m" if data.param == "depth"
+             else f"Φ = {float(data.branch['phi_L'][i]):.10g}")
+    click.echo(f"wrote {output} (point {i}, {where}, {samples} samples)")
 
 
 def _export_series(data, output, fmt, samples, grid, overwrite) -> None:

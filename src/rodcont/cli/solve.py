@@ -66,13 +66,13 @@ def solve(**given):
 
 def _solve_string(a) -> None:
     """``solve --string S.toml --conduit WELL.toml``: torque and drag (:func:`.drilling.run_drilling_solve`)."""
-    for name in ("gamma", "phi", "torque", "l0", "out"):
+    for name in ("gamma", "phi", "torque", "l0"):
         if getattr(a, name) is not None:
             raise UserError(f"--{name} is not an option of a drill string (--string): its loads are the string's "
                             f"weight, the operation, --wob and --bit-torque; drop --{name}")
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("--T is not an option of a drill string (--string): drop it")
-    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, overwrite=a.overwrite)
+    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, overwrite=a.overwrite, out=a.out)
 
 
 def _solve_rod(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ,

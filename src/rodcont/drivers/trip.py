@@ -11,8 +11,13 @@ iterations from it for steps of 0.1-5 m, and is slower than a cold start on the 
 Events along a trip: ``lock_up`` where the hook load reaches zero in slack-off (the string can no longer be pushed
 in: located by the secant in depth), and the end of the trip where no equilibrium is found at the next depth even
 with its step halved four times (a fold of the trip in depth). The branch table (and file) has per point ``depth``,
-``hook_load``, ``surface_torque``, ``side_force``, ``max_joint_side_force``, ``min_gap``, ``contact_zones``, ``T`` and
-``join_unknowns``.
+``hook_load``, ``surface_torque``, ``side_force``, ``max_joint_side_force``, ``min_gap``, ``contact_zones``, ``T``,
+``join_unknowns`` and ``force_scale`` (the contact law's at that point).
+
+The file is self-describing: its root attribute ``drilling`` (JSON, :func:`rodcont.drilling.drilling_record`) holds
+the well, the string, the operation, the friction factor, WOB and bit torque, so that each point's system is rebuilt
+from its depth, mesh and force scale (:func:`rodcont.drilling.rebuild`; ``rodcont export``). :func:`write_point`
+writes one equilibrium in the same layout (``solve --string ... --out F.h5``).
 """
 
 from __future__ import annotations
@@ -24,8 +29,8 @@ import numpy as np
 from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
 from ..result import Status
 
-TRIP_COLUMNS = ("depth", "T", "join_unknowns", "buckling_ratio", "max_joint_side_force") + CONTACT_COLUMNS + \
-    DRILLING_COLUMNS
+TRIP_COLUMNS = ("depth", "T", "join_unknowns", "buckling_ratio", "max_joint_side_force", "force_scale") + \
+    CONTACT_COLUMNS + DRILLING_COLUMNS
 #: buckling events along a trip: label, the buckling ratio's level (rodcont.drilling.buckling_ratio)
 BUCKLING_EVENTS = (("sinusoidal_buckling", 1.0), ("helical_buckling", 2.0 ** 0.5))
 
@@ -50,7 +55,8 @@ def trip_row(r, origin: float, joint_length: float = 9.14) -> dict:
     out.update(depth=r.depth, T=float(sysm.value()), error=r.error, unstable_modes=-1, arclength=abs(r.depth - origin),
                dphi_ds=0.0, join_unknowns=_join_unknowns(sysm), buckling_ratio=float(np.max(buckling_ratio(r))),
                kind="regular", located=True,
-               max_joint_side_force=float(np.max(joint_side_forces(r, joint_length)["side_force"])))
+               max_joint_side_force=float(np.max(joint_side_forces(r, joint_length)["side_force"])),
+               force_scale=float(sysm.model.contact_scale))
     return out
 
 
@@ -66,7 +72,7 @@ def trip(well, string, depth_range, operation: str = "slack-off", *, points: int
     depths = trip_depths(depth_range, operation, points)
     first = torque_and_drag(well, string, float(depths[0]), operation, mu=mu, **options)
     sysm = first.system
-    attrs = _attrs(first, operation, meta)
+    attrs = _attrs(first, operation, meta, well, string)
     branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "depth", attrs=attrs, curve=sysm.curve,
                     wall=sysm.wall)
     writer, recorder = _open(out, overwrite, attrs, branch, sysm)
@@ -101,12 +107,30 @@ def trip(well, string, depth_range, operation: str = "slack-off", *, points: int
     return branch
 
 
-def _attrs(first, operation, meta) -> dict:
-    """The root attributes of a trip's file: the rod at the rig, the wall of the first depth, the run."""
+def write_point(well, string, td, out: str, overwrite: bool = False, meta: dict | None = None,
+                joint_length: float = 9.14) -> None:
+    """The equilibrium ``td`` (:func:`rodcont.drilling.torque_and_drag` of ``string`` in ``well``) as a one-point
+    file in a trip's layout (parameter ``depth``), read back by ``rodcont export`` as a trip's points are."""
+    sysm = td.system
+    attrs = _attrs(td, td.operation.name, meta, well, string)
+    branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "depth", attrs=attrs, curve=sysm.curve,
+                    wall=sysm.wall)
+    writer, recorder = _open(out, overwrite, attrs, branch, sysm)
+    try:
+        _record(recorder, joint_length, td, td.depth, "start")
+    finally:
+        recorder.sync()
+        writer.close("one equilibrium (rodcont solve)", Status.COMPLETE)
+
+
+def _attrs(first, operation, meta, well, string) -> dict:
+    """The root attributes of a trip's file: the rod at the rig, the wall of the first depth, the run, and the
+    drilling record that rebuilds every point (:func:`rodcont.drilling.drilling_record`)."""
     import dataclasses
     import json
 
     from .. import __version__
+    from ..drilling import drilling_record
     sysm, rod = first.system, first.system.rod
     wall = dataclasses.replace(sysm.wall, force_scale=sysm.model.contact_scale)
     T = float(sysm.value())
@@ -114,6 +138,7 @@ def _attrs(first, operation, meta) -> dict:
                  L=rod.L, N=int(sysm.disc.N), k=int(sysm.disc.k), param="depth",
                  weight_direction=np.asarray(rod.weight_direction), min_alignment_guard=0.0, max_error=first_error(),
                  conduit=wall.spec, reference="straight", operation=operation, trip="depth",
+                 drilling=drilling_record(well, string, first),
                  settings=json.dumps(dict(rodcont_version=__version__)))
     attrs.update(meta or {})
     return attrs
