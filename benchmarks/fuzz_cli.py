@@ -1048,6 +1048,37 @@ def heavy_probes() -> list[Probe]:
     return P
 
 
+_INTERRUPT_HOOK = """import os, signal, sys
+_AT = os.environ.get("RODCONT_FUZZ_SIGINT_AT")
+class _At:
+    def find_spec(self, name, path=None, target=None):
+        global _AT
+        if _AT and name == _AT:
+            _AT = None
+            os.kill(os.getpid(), signal.SIGINT)
+sys.meta_path.insert(0, _At())
+"""
+_CONSOLE_SCRIPT = "import re, sys\nfrom rodcont._entry import main\nif __name__ == '__main__':\n    sys.exit(main())\n"
+
+
+def _interrupt_at(entry: str, at: str) -> str:
+    """API-probe code: rodcont started through ``entry``, sent SIGINT by a sitecustomize import hook as the import
+    of module ``at`` begins; it must end with exit 130 and at most one line, no traceback."""
+    cmd = {"console script": "[sys.executable, os.path.join(d, 'rodcont')]",
+           "cli.py": f"[sys.executable, {os.path.join(REPO, 'cli.py')!r}]",
+           "python -m rodcont": "[sys.executable, '-m', 'rodcont']"}[entry]
+    return (f"import os, shutil, subprocess, sys, tempfile\nd = tempfile.mkdtemp()\n"
+            f"open(os.path.join(d, 'sitecustomize.py'), 'w').write({_INTERRUPT_HOOK!r})\n"
+            f"open(os.path.join(d, 'rodcont'), 'w').write({_CONSOLE_SCRIPT!r})\n"
+            f"env = dict(os.environ, RODCONT_FUZZ_SIGINT_AT={at!r}, "
+            f"PYTHONPATH=os.pathsep.join([d, {os.path.join(REPO, 'src')!r}]))\n"
+            f"r = subprocess.run({cmd} + ['trace', '--gamma', '1', '--N', '60', '--uniform', '--max-error', '1', "
+            f"'--out', os.path.join(d, 'o.h5'), '--quiet'], env=env, capture_output=True, text=True, timeout=100)\n"
+            f"shutil.rmtree(d)\n"
+            f"assert r.returncode == 130 and 'Traceback' not in r.stderr and len(r.stderr.strip().splitlines()) <= 1, "
+            f"(r.returncode, r.stderr)")
+
+
 def signal_probes() -> list[Probe]:
     long_trace = ["trace", "--gamma", "1", "--N", "60", "--uniform", "--max-error", "1", "--out", "o.h5", "--quiet"]
     early = [Probe("signal:startup", long_trace, "sig", f"{sig.name} {t:g} s after exec (during interpreter start "
@@ -1055,7 +1086,12 @@ def signal_probes() -> list[Probe]:
              # Not probed: the first ~30 ms, while the interpreter itself starts, before the first line of
              # rodcont runs (a Python traceback there is the interpreter's, out of rodcont's reach).
              for sig, t in [(signal.SIGINT, 0.04), (signal.SIGINT, 0.09), (signal.SIGTERM, 0.05), (signal.SIGTERM, 0.1)]]
-    return early + [
+    event = [Probe("signal:startup-event", ["python", "-c", _interrupt_at(entry, at)], "ok",
+                   f"SIGINT as the import of {at} begins ({entry}; an event, not a moment): exit 130, one line",
+                   python=_interrupt_at(entry, at), timeout=120)
+             for entry in ("console script", "cli.py", "python -m rodcont")
+             for at in ("rodcont._entry", "numpy", "rodcont.cli.app", "rodcont.drivers.trace")]
+    return early + event + [
         Probe("signal", long_trace, "sig", "SIGTERM after 2.5 s: exit 143, the file holds every point",
               signal_after=(signal.SIGTERM, 2.5), partial_ok=("o.h5",), timeout=60),
         Probe("signal", long_trace, "sig", "SIGINT (to the group, as Ctrl-C) after 2.5 s: exit 130",

@@ -20,6 +20,29 @@ line) costs only what is used.
 
 __version__ = "0.2.0"
 
+
+def _interrupted(signum, frame):  # an interrupt before the command line is read: one line, no traceback
+    import signal
+    import sys
+    sys.stderr.write("rodcont: interrupted\n")
+    sys.exit(143 if signum == signal.SIGTERM else 130)
+
+
+def _as_command() -> bool:
+    """Whether this import starts the command line: the console script (``argv[0]`` is ``.../rodcont``) or
+    ``python -m rodcont`` (``argv[0]`` is ``-m`` while the package is imported to find its ``__main__``)."""
+    import os
+    import sys
+    argv0 = sys.argv[0] if sys.argv else ""
+    return argv0 == "-m" or os.path.basename(argv0) in ("rodcont", "rodcont.exe", "rodcont-script.py")
+
+
+if _as_command():  # the earliest line of rodcont a command runs: from here an interrupt is clean (_entry.main)
+    import signal as _signal
+    _signal.signal(_signal.SIGINT, _interrupted)
+    _signal.signal(_signal.SIGTERM, _interrupted)
+    del _signal
+
 _API = {
     "RodParameters": "rod", "EulerianRod": "rod", "StraightReference": "rod", "ReferenceCurve": "rod",
     "BVProblem": "collocation", "Collocation": "collocation", "NewtonResult": "linalg",

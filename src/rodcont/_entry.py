@@ -8,15 +8,16 @@ command's own handling takes over (a trace stops between two points).
 import signal
 import sys
 
-
-def _early(signum, frame):
-    sys.stderr.write("rodcont: interrupted\n")
-    sys.exit(143 if signum == signal.SIGTERM else 130)
+from . import _interrupted as _early  # noqa: F401  (the handler rodcont/__init__ installs for a command)
 
 
 def main(argv=None):
     signal.signal(signal.SIGINT, _early)
     signal.signal(signal.SIGTERM, _early)
-    from .cli import main as cli_main
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    cli_main(argv)
+    try:
+        from .cli import main as cli_main
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        cli_main(argv)
+    except KeyboardInterrupt:  # before the command's own handling began, or after it ended
+        sys.stderr.write("rodcont: interrupted\n")
+        sys.exit(130)
