@@ -293,14 +293,17 @@ def test_a_rod_system_names_a_wrong_number_of_gauss_points(k):
         rodcont.RodSystem(rodcont.RodParameters(), gamma=1.0, k=k)
 
 
-@pytest.mark.parametrize("branch, error", [([1, 2], TypeError), (1.5, TypeError), (True, TypeError),
-                                           ("x", ValueError), (-1, ValueError)])
-def test_load_branch_names_a_branch_index_of_the_wrong_type(tmp_path, branch, error):
-    # was BranchFileError "has no branch [1, 2]": a wrong type is the caller's error, named as such
+@pytest.mark.parametrize("branch", [[1, 2], 1.5, True])
+def test_load_branch_names_a_branch_index_of_the_wrong_type(tmp_path, branch):
+    # was BranchFileError "has no branch [1, 2]": a wrong type is the caller's error, named as such; a name
+    # of the right type the file does not hold stays the file's error (the CLI's --branch '' or -1: exit 2)
     path = str(tmp_path / "g.h5")
     rodcont.trace(1.0, phi_max=2.0, out=path)
-    with pytest.raises(error, match=r"branch must be a branch index \(an int >= 0\), got "):
+    with pytest.raises(TypeError, match=r"branch must be a branch index \(an int >= 0\), got "):
         rodcont.load_branch(path, branch=branch)
+    for name in ("", "-1", -1, "branches"):
+        with pytest.raises(rodcont.branchfile.BranchFileError, match="not a diagram: no branch"):
+            rodcont.load_branch(path, branch=name)
 
 
 @pytest.mark.parametrize("label", [1.5, [1], None, True])

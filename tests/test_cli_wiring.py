@@ -349,3 +349,27 @@ def test_diagram_on_two_processes_finds_the_serial_folds(tmp_path, capsys):
             assert workers > 0 and cpu[jobs] >= workers - 0.02
     assert len(tables["1"]) == 3 and tables["1"] == tables["2"]  # the header and the folds at 13.1 and 21.02
     assert tables["1"][1].split()[:2] == ["0", "13.099993823047"]
+
+
+@pytest.mark.parametrize("failure", [SystemError("gstrf was called with invalid arguments"),
+                                     RuntimeError("SUPERLU_MALLOC fails for buf in intCalloc()")])
+def test_an_lu_that_cannot_get_its_memory_is_a_memory_error(monkeypatch, capsys, failure):
+    # fuzz #2473 (--max-error 1e-300 under an 8 GB limit): SuperLU's failed malloc came out as "unexpected
+    # failure (SystemError: gstrf ...)" exit 1, or as a "singular Jacobian"; it is the size asked for
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from rodcont.linalg import LU, SingularMatrix
+
+    def no_memory(*args, **kwargs):
+        raise failure
+
+    monkeypatch.setattr(spla, "splu", no_memory)
+    with pytest.raises(MemoryError, match=r"the sparse LU of a 3 x 3 matrix did not fit in memory"):
+        LU(sp.identity(3, format="csc"))
+    code, out, err = run(["solve", "--gamma", "1", "--phi", "1"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("rodcont: error: out of memory (the sparse LU of a ") and "--N-max" in err
+    monkeypatch.setattr(spla, "splu", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("Factor is exactly singular")))
+    with pytest.raises(SingularMatrix):
+        LU(sp.identity(3, format="csc"))

@@ -784,13 +784,10 @@ def _check_path(path) -> None:
 
 
 def _check_branch_index(branch) -> None:
-    """``branch`` is None, an int >= 0 or its decimal string: another type is a ``TypeError`` naming it."""
-    if branch is None or (isinstance(branch, str) and branch.isdigit()):
-        return
-    if isinstance(branch, bool) or not isinstance(branch, (int, str)):
+    """``branch`` is None, an int or a str (a name the file may not hold is a :class:`BranchFileError` that lists
+    the branches it has); another type is a ``TypeError`` naming it."""
+    if isinstance(branch, bool) or not (branch is None or isinstance(branch, (int, np.integer, str))):
         raise TypeError(f"branch must be a branch index (an int >= 0), got {branch!r}")
-    if isinstance(branch, str) or branch < 0:
-        raise ValueError(f"branch must be a branch index (an int >= 0), got {branch!r}")
 
 
 def load_branch(path: str, branch: str | int | None = None) -> Branch:

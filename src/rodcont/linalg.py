@@ -123,6 +123,15 @@ class SingularMatrix(ArithmeticError):
     """The factorisation met an exactly zero pivot."""
 
 
+def is_out_of_memory(exc: BaseException) -> bool:
+    """SuperLU's ways of saying an allocation failed: "SUPERLU_MALLOC fails ..." as a RuntimeError, or, when a
+    work array could not be had, a SystemError "gstrf was called with invalid arguments"
+    (test_an_lu_that_cannot_get_its_memory_is_a_memory_error)."""
+    text = str(exc)
+    return (isinstance(exc, MemoryError) or "MALLOC" in text.upper()
+            or (isinstance(exc, SystemError) and "gstrf" in text))
+
+
 class LU:
     """Sparse LU of a square CSC matrix ``A`` (``Pr A Pc = L U``; natural column order by default).
 
@@ -145,7 +154,10 @@ class LU:
             A = (sp.diags(self._r) @ A @ sp.diags(self._c)).tocsc()
         try:
             self._lu = spla.splu(A, permc_spec=ordering)
-        except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+        except (RuntimeError, SystemError) as exc:  # SuperLU: "Factor is exactly singular", or out of memory
+            if is_out_of_memory(exc):
+                n = A.shape[0]
+                raise MemoryError(f"the sparse LU of a {n} x {n} matrix did not fit in memory") from None
             raise SingularMatrix(str(exc)) from None
         self.n = A.shape[0]
         self._det = None

@@ -64,7 +64,12 @@ def _main(argv):
         if isinstance(exc, (BranchFileError, InputFileError, OutputFileError)):
             echo_err(f"rodcont: error: {exc}")
             sys.exit(EXIT_USAGE)
-        if isinstance(exc, (MemoryError, OSError)):
+        from ..linalg import is_out_of_memory
+        if is_out_of_memory(exc):  # the size asked for, not a bug: refused as bad input is
+            echo_err("rodcont: error: out of memory" + (f" ({' '.join(str(exc).split())})" if str(exc) else "")
+                     + ": ask for a smaller problem (--N, --N-max, a looser --max-error)")
+            sys.exit(EXIT_USAGE)
+        if isinstance(exc, OSError):
             echo_err(f"rodcont: error: {type(exc).__name__}: {' '.join(str(exc).split())}")
             sys.exit(1)
         echo_err(f"rodcont: error: unexpected failure ({type(exc).__name__}: {' '.join(str(exc).split())}); "
