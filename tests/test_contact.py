@@ -953,9 +953,7 @@ def test_a_trace_stopped_by_a_singular_point_says_so_and_a_regular_stop_does_not
     assert scaled_smallest_singular_value(sp.csr_matrix(A)) == pytest.approx(np.linalg.svd(B)[1][-1], rel=1e-8)
     assert scaled_smallest_singular_value(sp.csr_matrix(np.outer(A[0], A[1]))) < 1e-15
     b = trace(rod=RodParameters(), T=10.0, wall=Wall(0.01, eps=1e-5), phi_max=21.0)
-    # the corrector fails there at every step size, or (with the equilibrated LU's rounding) on the refined mesh
-    assert b.stop_reason.startswith(("step size fell below", "accuracy guard: no converged solution"))
-    assert "singular to rounding" in b.stop_reason
+    assert b.stop_reason.startswith("step size fell below") and "singular to rounding" in b.stop_reason
     assert 20.86 < b.table["phi_L"][-1] < 20.87
     b = trace(rod=RodParameters(), T=10.0, ds=5.0, ds_max=5.0, ds_min=5.0)  # a step-size stop at a regular point
     assert b.stop_reason.startswith("step size fell below") and "singular" not in b.stop_reason
