@@ -88,22 +88,6 @@ def test_seed_branch_in_other_length_units():
     assert runs(ref.table["unstable_modes"]) == runs(ten.table["unstable_modes"]) == [4, 5]
 
 
-def test_a_fold_in_force_units_x_1e6_is_located_as_in_the_papers():
-    """The same seed branch with forces x 1e6 (the fuzz probe issue22:units): its fold's torque was 1.2e-8 off
-    (x 1e6) and its dPhi/ds 6.7e-6 at the located fold (1.6e-11 in the paper's units): the raw bordered matrix,
-    rows and columns in force units, lost digits in the tangent under partial pivoting, and the fold was located
-    to rounding short of dp/ds = 0. Equilibrated (rodcont.linalg.equilibration), the fold's torque and Phi agree
-    to 1e-11 and its dPhi/ds is within fold_tol (1e-10)."""
-    ref = rodcont.trace(1.0, from_straight=25.778)
-    big = rodcont.trace(None, rod=RodParameters(EI=1e6, GJ=7.5e5, EA=2.55e8, w=1e7, L=1.0), T=1e7,
-                        from_straight=25.778)
-    (f0,), (f1,) = ref.folds, big.folds
-    assert f1["phi_L"] == pytest.approx(f0["phi_L"], rel=1e-11)
-    assert f1["torque"] == pytest.approx(1e6 * f0["torque"], rel=1e-11)
-    for b, f in ((ref, f0), (big, f1)):
-        assert abs(b.table["dphi_ds"][f["index"]]) <= 1e-10
-
-
 # --------------------------------------------------------------------------
 # The stability counts alone, on exactly mapped solutions
 # --------------------------------------------------------------------------

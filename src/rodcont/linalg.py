@@ -141,17 +141,10 @@ class LU:
     with that row replaced (one extra solve, once).
     """
 
-    def __init__(self, A: sp.csc_matrix, ordering: str = "NATURAL", equilibrate: bool = False):
+    def __init__(self, A: sp.csc_matrix, ordering: str = "NATURAL"):
         """``ordering``: SuperLU's column order. ``NATURAL`` suits the banded Jacobians of the
         collocation; ``COLAMD`` bounds the fill where a dense border row meets a badly scaled band
-        (:class:`rodcont.mesh.ErrorEstimator`). ``equilibrate``: factorise ``R A C`` instead, ``R`` and ``C``
-        the powers of two nearest the inverse max-norms of the rows, then of the columns (:func:`equilibration`:
-        exact in floating point), so that partial pivoting, and the rounding, are the same in any units."""
-        A = sp.csc_matrix(A, dtype=float) if equilibrate else A
-        self._r = self._c = None
-        if equilibrate:
-            self._r, self._c = equilibration(A)
-            A = (sp.diags(self._r) @ A @ sp.diags(self._c)).tocsc()
+        (:class:`rodcont.mesh.ErrorEstimator`)."""
         try:
             self._lu = spla.splu(A, permc_spec=ordering)
         except (RuntimeError, SystemError) as exc:  # SuperLU: "Factor is exactly singular", or out of memory
@@ -163,12 +156,7 @@ class LU:
         self._det = None
 
     def solve(self, b: np.ndarray, trans: bool = False) -> np.ndarray:
-        b = np.asarray(b, float)
-        if self._r is None:
-            return self._lu.solve(b, trans="T" if trans else "N")
-        if trans:  # A^T = C^-1 (R A C)^T R^-1
-            return self._r * self._lu.solve(self._c * b, trans="T")
-        return self._c * self._lu.solve(self._r * b)
+        return self._lu.solve(np.asarray(b, float), trans="T" if trans else "N")
 
     def det(self) -> tuple[int, float]:
         """Sign and log-magnitude of ``det A`` (from the diagonal of ``U`` and the row permutation)."""
@@ -176,10 +164,7 @@ class LU:
             u = self._lu.U.diagonal()
             sign = int(np.prod(np.sign(u))) * permutation_sign(self._lu.perm_r) * permutation_sign(self._lu.perm_c)
             with np.errstate(divide="ignore"):
-                log = float(np.sum(np.log(np.abs(u))))
-            if self._r is not None:  # det A = det(R A C) / (det R det C), both positive
-                log -= float(np.sum(np.log(self._r)) + np.sum(np.log(self._c)))
-            self._det = (sign, log)
+                self._det = (sign, float(np.sum(np.log(np.abs(u)))))
         return self._det
 
     def with_last_row(self, old_row: np.ndarray, new_row: np.ndarray, u: np.ndarray | None = None) -> RowUpdatedLU:
@@ -211,17 +196,6 @@ class RowUpdatedLU:
     def solve(self, b: np.ndarray) -> np.ndarray:
         y = self.lu.solve(b)
         return y - self.u * (float(self.delta @ y) / self.denominator)
-
-
-def equilibration(A: sp.csc_matrix) -> tuple[np.ndarray, np.ndarray]:
-    """``(r, c)``: powers of two nearest ``1 / max_j |A_ij|`` (rows), then ``1 / max_i |r_i A_ij|`` (columns); 1 for
-    an empty row or column. ``R A C`` then has every row and column of max-norm in [1/2, 2), whatever the units of
-    the equations and unknowns, and is formed without rounding."""
-    rows = abs(A).max(axis=1).toarray().ravel()
-    r = np.exp2(-np.round(np.log2(np.where(rows > 0, rows, 1.0))))
-    cols = abs(sp.diags(r) @ A).max(axis=0).toarray().ravel()
-    c = np.exp2(-np.round(np.log2(np.where(cols > 0, cols, 1.0))))
-    return r, c
 
 
 def permutation_sign(perm: np.ndarray) -> int:
@@ -657,9 +631,6 @@ def bordered_solver(J, b: np.ndarray, c: np.ndarray, d: float) -> BorderedSolver
 
 
 def full_bordered_lu(J, b: np.ndarray, c: np.ndarray, d: float) -> LU:
-    """A sparse LU of the assembled ``[[J, b], [c^T, d]]`` (natural order, equilibrated): the solver before
-    :class:`BorderedSolver`, for a problem that wants it (``bordered_solver = full_bordered_lu``). Equilibrated,
-    because the rod's equations and unknowns carry its units: with forces x 1e6 the raw matrix's pivots lost
-    digits in the tangent's ``dp/ds`` (noise 5e-6 for 1e-11), a fold was located to rounding 6.7e-6 from
-    ``dp/ds = 0`` and its torque was 1.2e-8 off (8e-13 equilibrated)."""
-    return LU(bordered(J, b, c, d), equilibrate=True)
+    """A sparse LU of the assembled ``[[J, b], [c^T, d]]`` (natural order): the solver before
+    :class:`BorderedSolver`, for a problem that wants it (``bordered_solver = full_bordered_lu``)."""
+    return LU(bordered(J, b, c, d))
