@@ -84,7 +84,9 @@ def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file
                                                                           rel=1e-10)
     td = drill_point(data, i)
     r = td.system.disc.newton(td.x, td.system.base, tol=1e-10)
-    assert r.converged and np.max(np.abs(r.x - td.x)) <= 1e-9 * np.max(np.abs(td.x))
+    # the trip's solves stop at their own Newton/chord tolerance (measured 1.5e-9 of max|x| with the chord
+    # homotopy, below 1e-9 without it); a wrongly rebuilt law, section or load moves the solution by O(1)
+    assert r.converged and np.max(np.abs(r.x - td.x)) <= 1e-8 * np.max(np.abs(td.x))
     c = _clearance(S, depth)
     assert np.all(f["gap"] >= -MAX_PENETRATION * c)
     on = f["in_contact"] == 1.0
