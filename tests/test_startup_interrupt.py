@@ -10,6 +10,7 @@ Before any line of rodcont runs (the interpreter's own start, ``site``) the inte
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 
@@ -86,5 +87,5 @@ def test_the_hook_interrupts_where_it_says_and_the_library_keeps_pythons_handler
     assert r.returncode == 7, r.stderr
     code = "import signal, rodcont\nassert signal.getsignal(signal.SIGINT) is signal.default_int_handler"
     r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=SRC), capture_output=True,
-                       text=True, timeout=60)
+                       text=True, timeout=60, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert r.returncode == 0, r.stderr
