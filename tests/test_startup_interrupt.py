@@ -81,7 +81,8 @@ def test_the_hook_interrupts_where_it_says_and_the_library_keeps_pythons_handler
     """The hook itself: with no handler, the interrupt at an import is a KeyboardInterrupt there (a module no
     start-up can have imported already: fractions was, once, in the full suite's environment)."""
     # a parent that ignores SIGINT (as the full suite may, by then) passes SIG_IGN on: restore Python's handler
-    code = HOOK + "\nsignal.signal(signal.SIGINT, signal.default_int_handler)\ntry:\n    import _rodcont_no_such_module\nexcept KeyboardInterrupt:\n    sys.exit(7)\n"
+    code = (HOOK + "\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "try:\n    import _rodcont_no_such_module\nexcept KeyboardInterrupt:\n    sys.exit(7)\n")
     env = dict(os.environ, RODCONT_TEST_SIGINT_AT="_rodcont_no_such_module")
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 7, r.stderr
