@@ -1048,16 +1048,12 @@ def heavy_probes() -> list[Probe]:
     return P
 
 
-_INTERRUPT_HOOK = """import os, signal, sys
-_AT = os.environ.get("RODCONT_FUZZ_SIGINT_AT")
-class _At:
-    def find_spec(self, name, path=None, target=None):
-        global _AT
-        if _AT and name == _AT:
-            _AT = None
-            os.kill(os.getpid(), signal.SIGINT)
-sys.meta_path.insert(0, _At())
-"""
+def _interrupt_hook() -> str:
+    sys.path.insert(0, os.path.join(REPO, "tests"))
+    from sigint_hook import HOOK
+    return HOOK
+
+
 _CONSOLE_SCRIPT = "import re, sys\nfrom rodcont._entry import main\nif __name__ == '__main__':\n    sys.exit(main())\n"
 
 
@@ -1068,9 +1064,9 @@ def _interrupt_at(entry: str, at: str) -> str:
            "cli.py": f"[sys.executable, {os.path.join(REPO, 'cli.py')!r}]",
            "python -m rodcont": "[sys.executable, '-m', 'rodcont']"}[entry]
     return (f"import os, shutil, subprocess, sys, tempfile\nd = tempfile.mkdtemp()\n"
-            f"open(os.path.join(d, 'sitecustomize.py'), 'w').write({_INTERRUPT_HOOK!r})\n"
+            f"open(os.path.join(d, 'sitecustomize.py'), 'w').write({_interrupt_hook()!r})\n"
             f"open(os.path.join(d, 'rodcont'), 'w').write({_CONSOLE_SCRIPT!r})\n"
-            f"env = dict(os.environ, RODCONT_FUZZ_SIGINT_AT={at!r}, "
+            f"env = dict(os.environ, RODCONT_SIGINT_AT={at!r}, "
             f"PYTHONPATH=os.pathsep.join([d, {os.path.join(REPO, 'src')!r}]))\n"
             f"r = subprocess.run({cmd} + ['trace', '--gamma', '1', '--N', '60', '--uniform', '--max-error', '1', "
             f"'--out', os.path.join(d, 'o.h5'), '--quiet'], env=env, capture_output=True, text=True, timeout=100)\n"

@@ -16,26 +16,10 @@ import sys
 
 import pytest
 
+from sigint_hook import HOOK
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SRC = os.path.join(ROOT, "src")
-
-HOOK = '''import os, signal, sys
-_AT = os.environ.get("RODCONT_TEST_SIGINT_AT")
-
-
-class _InterruptAt:
-    """Sends SIGINT to this process as the import of module _AT begins (once)."""
-
-    def find_spec(self, name, path=None, target=None):
-        global _AT
-        if _AT and name == _AT:
-            _AT = None
-            os.kill(os.getpid(), signal.SIGINT)
-        return None
-
-
-sys.meta_path.insert(0, _InterruptAt())
-'''
 
 # what pip writes for the console script ``rodcont = "rodcont._entry:main"``
 CONSOLE_SCRIPT = '''# -*- coding: utf-8 -*-
@@ -68,7 +52,7 @@ def test_an_interrupt_at_any_import_of_start_up_ends_quietly(tmp_path, event):
     hook = tmp_path / "hook"
     hook.mkdir()
     (hook / "sitecustomize.py").write_text(HOOK)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(hook), SRC]), RODCONT_TEST_SIGINT_AT=event)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(hook), SRC]), RODCONT_SIGINT_AT=event)
     for how, cmd in _entries(tmp_path).items():
         work = tmp_path / how.replace(" ", "_")
         work.mkdir()
@@ -83,7 +67,7 @@ def test_the_hook_interrupts_where_it_says_and_the_library_keeps_pythons_handler
     # a parent that ignores SIGINT (as the full suite may, by then) passes SIG_IGN on: restore Python's handler
     code = (HOOK + "\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
             "try:\n    import _rodcont_no_such_module\nexcept KeyboardInterrupt:\n    sys.exit(7)\n")
-    env = dict(os.environ, RODCONT_TEST_SIGINT_AT="_rodcont_no_such_module")
+    env = dict(os.environ, RODCONT_SIGINT_AT="_rodcont_no_such_module")
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 7, r.stderr
     code = "import signal, rodcont\nassert signal.getsignal(signal.SIGINT) is signal.default_int_handler"
