@@ -147,25 +147,28 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
 
 
 def stiffen_contact(sysm: RodSystem, x: np.ndarray, p: np.ndarray, P: float, tol: float = 1e-10) -> np.ndarray:
-    """The equilibrium under the stiffer contact law of force scale ``P`` (``> model.contact_scale``), reached
-    by a homotopy in the scale (at most a factor 10 per stage, halved in the logarithm when Newton fails), as
-    :func:`settle_in_conduit` reaches ``eps``. The system's wall and model carry ``P`` afterwards."""
+    """The equilibrium under the stiffer contact law of force scale ``P`` (``> model.contact_scale``; a softer
+    one the same way down), reached by a homotopy in the scale (at most a factor 10 per stage, halved in the
+    logarithm when Newton fails), as :func:`settle_in_conduit` reaches ``eps``. The system's wall and model
+    carry ``P`` afterwards."""
     model = sysm.model
     P0 = model.contact_scale
-    done, step = 0.0, min(1.0, math.log10(P / P0))  # log10 of the factor reached, of the next stage
-    target = math.log10(P / P0)
+    up = 1.0 if P >= P0 else -1.0  # the homotopy's direction
+    target = up * math.log10(P / P0)
+    done, step = 0.0, min(1.0, target)  # |log10| of the factor reached, of the next stage
     while done < target:
         nxt = min(done + step, target)
-        model.contact_scale = P0 * 10.0**nxt
+        model.contact_scale = P0 * 10.0**(up * nxt)
         r = sysm.disc.newton(x, p, tol=tol, max_iter=60)
         if r.converged:
             x, done = r.x, nxt
             continue
         step *= 0.5
         if step < 1e-3:
-            model.contact_scale = P0 * 10.0**done
+            model.contact_scale = P0 * 10.0**(up * done)
             _set_force_scale(sysm, model.contact_scale)
-            raise ConvergenceError(f"the contact law could not be stiffened past force scale "
+            how = "stiffened" if up > 0 else "softened"
+            raise ConvergenceError(f"the contact law could not be {how} past force scale "
                                    f"{model.contact_scale:.4g} (aiming at {P:.4g}): {r.message}")
     _set_force_scale(sysm, P)
     return x
@@ -397,12 +400,31 @@ def _refined(sysm: RodSystem, x: np.ndarray, check: _Check, settings: dict, cont
     return new, x, r
 
 
+def _posed_law(sysm: RodSystem, x: np.ndarray, r, P: float, tol: float):
+    """``(x, newton)`` under the law posed (force scale ``P``, softer than the one the guard stiffened on a
+    coarser mesh), from ``x``: a refined mesh may not need the stiffening, whose barrier ``eps c P / g`` pushes
+    along every free span. ``(x, r)`` under the stiffened law when Newton fails at ``P``."""
+    P1 = sysm.model.contact_scale
+    sysm.model._last_contact = None  # its cache keys the point, not the law
+    try:
+        y = stiffen_contact(sysm, x, sysm.base, P, tol)
+    except ConvergenceError:
+        _set_force_scale(sysm, P1)
+        return x, r
+    return y, sysm.disc.newton(y, sysm.base, tol=tol)
+
+
 def _adapt(sysm, x, r, controls, settings, load_step, tol, notes: list):
     """Stiffen the contact law past the penetration guard, refine the mesh past the error guards: at most
-    eight rounds. Returns ``(system, x, newton, check)``; ``notes`` says what was stiffened."""
+    eight rounds of each. A law the guard stiffened has the law's part in the side force's estimate
+    (:func:`law_side_force_error`) and is taken back to the one posed on each refined mesh (the guard decides
+    there anew). Returns ``(system, x, newton, check)``; ``notes`` says what was stiffened."""
     from ..contact import MAX_PENETRATION
     law_before = math.inf
-    for _ in range(8):
+    posed, first_note = (sysm.model.contact_scale if sysm.wall is not None else None), len(notes)
+    own_scale = None  # set once the guard stiffened the law: the law posed is the problem, not an error
+    stiffenings = refinements = 0
+    while stiffenings < 8 and refinements < 8:
         check = _check(sysm, x)
         if sysm.wall is not None and check.penetration > MAX_PENETRATION:
             P0 = sysm.model.contact_scale
@@ -410,11 +432,12 @@ def _adapt(sysm, x, r, controls, settings, load_step, tol, notes: list):
             x = stiffen_contact(sysm, x, sysm.base, P, tol)
             notes.append(f"the contact law was stiffened from force_scale {P0:.4g} to {P:.4g}: the rod sat "
                          f"{check.penetration:.2g} of the clearance inside the wall (guard {MAX_PENETRATION:g})")
+            own_scale, stiffenings = settings.get("own_scale"), stiffenings + 1
             continue
         ratio = check.ratio(settings["max_error"], settings["max_side_force_error"])
         final = not settings["adapt"] or sysm.disc.N >= settings["N_max"]
         if ratio <= 1.0 or final:  # the mesh's estimates met (or the mesh final): the law's part added
-            check = _with_law(sysm, x, check, settings.get("own_scale"), tol)
+            check = _with_law(sysm, x, check, own_scale, tol)
             law = check.law_side_force_error
             # a coarse mesh's re-solve reads some of the mesh's error too, which a finer mesh lowers; a part
             # that one refinement did not halve is the smoothing's own, which no mesh lowers
@@ -423,7 +446,13 @@ def _adapt(sysm, x, r, controls, settings, load_step, tol, notes: list):
                 return sysm, x, r, check
             law_before = law
         sysm, x, r = _refined(sysm, x, check, settings, controls, load_step, tol)
-    return sysm, x, r, _with_law(sysm, x, _check(sysm, x), settings.get("own_scale"), tol)
+        refinements += 1
+        if check.law_side_force_error > settings["max_side_force_error"] and sysm.model.contact_scale > posed:
+            x, r = _posed_law(sysm, x, r, posed, tol)
+            if sysm.model.contact_scale == posed:  # the notes of the law left behind
+                del notes[first_note:]
+                own_scale = None
+    return sysm, x, r, _with_law(sysm, x, _check(sysm, x), own_scale, tol)
 
 
 def _judge(sysm: RodSystem, check: _Check, settings: dict) -> list:
