@@ -1130,6 +1130,24 @@ def test_a_forced_coarse_mesh_whose_contact_law_was_stiffened_is_refused_not_pri
     assert not good.notes and good.side_force_error <= 1e-3 and np.isnan(good.law_side_force_error)
 
 
+def test_a_law_the_guard_stiffened_on_a_coarse_mesh_is_taken_back_on_the_refined_one():
+    """A clearance stepping from 0.004 to 0.002 over 0.02, from N = 20: the guard stiffened the law three
+    times there, to force_scale 1.388e6, whose barrier floated the rod off the wall (0.55 of the clearance),
+    and the adapted mesh kept it: side_force 29.72 with a mesh estimate 1e-17 and no warning. The law's part of
+    the estimate (3.5) now takes it back to the law posed on the refined mesh, where the guard stiffens it once,
+    as uniform meshes of 160 .. 640 need (369 .. 374): its side force is that of the same law given as the
+    conduit's own (an adapted solve with no guard at work), within 1e-2 (measured 4.4933 for 4.5004)."""
+    stations = ((0.0, 0.004), (0.49, 0.004), (0.51, 0.002), (1.0, 0.002), (2.0, 0.001))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # the law's part, 0.003, is above its guard 1e-3
+        eq = solve_equilibrium(1.0, 0.0, RodParameters(), wall=Wall(stations, eps=1e-5), N=20)
+    P = eq.outputs["force_scale"]
+    assert 300 < P < 400 and len(eq.notes) == 1 and eq.law_side_force_error < 1e-2
+    same = solve_equilibrium(1.0, 0.0, RodParameters(), wall=Wall(stations, eps=1e-5, force_scale=P))
+    assert not same.notes and np.isnan(same.law_side_force_error)
+    assert eq.outputs["side_force"] == pytest.approx(same.outputs["side_force"], rel=1e-2)
+
+
 def _guidewire_conduit(tmp_path, extra=""):
     f = tmp_path / "vessel.toml"
     f.write_text(f'[conduit]\nreference = "arc:0.6"\nclearance = 0.001\neps = 1e-5\n{extra}')

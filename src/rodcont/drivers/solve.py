@@ -73,8 +73,9 @@ class Equilibrium:
 
     ``outputs`` holds every control and response (``T``, ``gamma``, ``phi_L``,
     ``torque``, ``l0``, ``stretch``, ...); ``error`` the estimate of :class:`rodcont.mesh.ErrorEstimator` on
-    the final mesh, ``side_force_error`` the side force's (its error from exact contact): the mesh's part
-    (the same estimator) plus the contact law's, ``law_side_force_error`` (:func:`law_side_force_error`);
+    the final mesh, ``side_force_error`` the side force's: the mesh's part (the same estimator) plus, when the
+    penetration guard stiffened the law, the contact law's, ``law_side_force_error`` (:func:`law_side_force_error`;
+    NaN for the law posed, which is the problem, not an error);
     ``warnings`` what was said about the result (also issued as ``RuntimeWarning``), ``notes`` what was
     done to reach it (a stiffened contact law).
     """
@@ -311,7 +312,8 @@ def _axial_text(controls: _Controls) -> str:
 @dataclass
 class _Check:
     """The estimates of one solution on its mesh, against the guards: ``side_force_error`` is the mesh's part
-    (``mesh_side_force_error``) plus the contact law's (``law_side_force_error``, :func:`law_side_force_error`)."""
+    (``mesh_side_force_error``) plus, for a law the guard stiffened, the contact law's (``law_side_force_error``,
+    :func:`law_side_force_error`; NaN otherwise)."""
 
     error: float
     side_force_error: float
