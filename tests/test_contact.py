@@ -4,6 +4,7 @@ against an independent solution, and the command line."""
 from __future__ import annotations
 
 import os
+import warnings
 
 import h5py
 import numpy as np
@@ -1101,6 +1102,50 @@ def test_the_well_example_with_the_readmes_drill_pipe_is_right_at_its_default_me
     fine = solve_equilibrium(None, 0.0, rod, T=1e5, curve=curve, wall=wall, max_side_force_error=1e-5)
     assert abs(float(lines["side_force"]) / fine.outputs["side_force"] - 1) < 1e-3
     assert fine.outputs["side_force"] == pytest.approx(136429.15, rel=1e-6)
+
+
+def test_a_forced_coarse_mesh_whose_contact_law_was_stiffened_is_refused_not_printed(capsys):
+    """The README's drill pipe in the example well on a uniform N = 20 (elements of 50 m for a bending length of
+    3.5 m): the rod crossed the wall between its points, the penetration guard stiffened the law to
+    force_scale 1.8e8, whose barrier eps c P / g pushes along every free span, and solve printed side_force
+    3525889.5 (136429 on the adapted mesh) with side_force_error 6.1e-10, exit 0: every mesh agrees on that
+    barrier force. The side force's estimate of a law the guard stiffened now has the law's part (the change
+    at 2 eps): it bounds the error of the force it reports, and the command refuses it with the advice, in one
+    line. The adapted mesh needs no stiffening: its law is the one posed and has no such part."""
+    (args,) = _documented("conduit_well.toml")
+    args = [os.path.join(ROOT, a) if a.startswith("examples/") else a for a in args]
+    code, out, err = run(args + ["--uniform", "--N", "20"], capsys)
+    assert code == 2 and "side_force" not in out and len(err.strip().splitlines()) == 1, err
+    assert "far above its guard" in err and "contact law" in err and "raise N" in err, err
+    from rodcont.contact import load_conduit
+    L = float(args[args.index("--L") + 1])
+    curve, wall = load_conduit(os.path.join(EXAMPLES, "conduit_well.toml"), L)
+    rod = RodParameters(EI=1.25e6, GJ=9.6e5, EA=7.15e8, w=235.0, L=L)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        coarse = solve_equilibrium(None, 0.0, rod, T=1e5, curve=curve, wall=wall, N=20, adapt=False, strict=False)
+    good = solve_equilibrium(None, 0.0, rod, T=1e5, curve=curve, wall=wall)
+    F, F_good = coarse.outputs["side_force"], good.outputs["side_force"]
+    assert coarse.notes and coarse.side_force_error >= abs(F - F_good) / abs(F) > 0.5
+    assert not good.notes and good.side_force_error <= 1e-3 and np.isnan(good.law_side_force_error)
+
+
+def test_a_law_the_guard_stiffened_on_a_coarse_mesh_is_taken_back_on_the_refined_one():
+    """A clearance stepping from 0.004 to 0.002 over 0.02, from N = 20: the guard stiffened the law three
+    times there, to force_scale 1.388e6, whose barrier floated the rod off the wall (0.55 of the clearance),
+    and the adapted mesh kept it: side_force 29.72 with a mesh estimate 1e-17 and no warning. The law's part of
+    the estimate (3.5) now takes it back to the law posed on the refined mesh, where the guard stiffens it once,
+    as uniform meshes of 160 .. 640 need (369 .. 374): its side force is that of the same law given as the
+    conduit's own (an adapted solve with no guard at work), within 1e-2 (measured 4.4933 for 4.5004)."""
+    stations = ((0.0, 0.004), (0.49, 0.004), (0.51, 0.002), (1.0, 0.002), (2.0, 0.001))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # the law's part, 0.003, is above its guard 1e-3
+        eq = solve_equilibrium(1.0, 0.0, RodParameters(), wall=Wall(stations, eps=1e-5), N=20)
+    P = eq.outputs["force_scale"]
+    assert 300 < P < 400 and len(eq.notes) == 1 and eq.law_side_force_error < 1e-2
+    same = solve_equilibrium(1.0, 0.0, RodParameters(), wall=Wall(stations, eps=1e-5, force_scale=P))
+    assert not same.notes and np.isnan(same.law_side_force_error)
+    assert eq.outputs["side_force"] == pytest.approx(same.outputs["side_force"], rel=1e-2)
 
 
 def _guidewire_conduit(tmp_path, extra=""):
