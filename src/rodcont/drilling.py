@@ -310,7 +310,8 @@ class TorqueDrag:
     """One equilibrium of the string: ``hook_load`` (N, the axial force at the rig), ``surface_torque`` (N m),
     profiles against MD on a fine grid (``profile``: ``S``, ``axial_force``, ``torque``, ``pressure`` the wall force
     per length, ``gap``, ``in_contact``), ``side_force`` (the wall's total), the contact ``zones``, the error
-    estimate and the mesh size ``N``; ``system``, ``x``: the solved rod (:class:`rodcont.system.RodSystem`)."""
+    estimate and the mesh size ``N``; ``system``, ``x``: the solved rod (:class:`rodcont.system.RodSystem`);
+    ``well``, ``string``: what it was solved for (a file's drilling record, :func:`drilling_record`)."""
 
     depth: float
     operation: Operation
@@ -327,6 +328,8 @@ class TorqueDrag:
     system: object = field(repr=False)
     x: np.ndarray = field(repr=False)
     placed: StringInWell = field(repr=False)
+    well: Well | None = field(default=None, repr=False)
+    string: DrillString | None = field(default=None, repr=False)
 
     @property
     def params(self) -> np.ndarray:
@@ -466,7 +469,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
                 sysm, x = _loaded_gradually(placed, mu, op, T, bit_torque, well.eps, N, k, sysm.model.contact_scale,
                                             tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
-    return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+    return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
 
 
 def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step: float = 0.25):
@@ -509,7 +512,7 @@ def _warm(placed, friction, T, bit_torque, eps, k, start, tol):
     return (sysm, r.x) if r.converged else (None, None)
 
 
-def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
+def _result(sysm, x, placed, op, mu, wob, bit_torque, err, well=None, string=None) -> TorqueDrag:
     from .ends import axial_force_and_torque
     model, disc = sysm.model, sysm.disc
     p = disc.full_params(x, sysm.base)
@@ -520,7 +523,7 @@ def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
     profile = dict(S=con["S"], axial_force=F, torque=M, pressure=con["pressure"], gap=con["gap"],
                    in_contact=con["gap"] <= 0.01 * model.wall.clearance_at(con["S"]))
     return TorqueDrag(float(placed.curve.length), op, mu, float(wob), float(bit_torque), float(F[0]), float(M[0]),
-                      profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed)
+                      profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed, well, string)
 
 
 # --------------------------------------------------------------------------
@@ -616,8 +619,11 @@ def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, o
                     ds: float = 0.1, ds_max: float = 0.5, N_max: int = 4000, max_error: float = 1e-6):
     """Trace the solved string ``td`` in the axial force at the bit ``T`` (``-WOB``) over ``T_range`` (from the
     solution's ``T`` towards the other end) with :func:`rodcont.drivers.trace.run`; ``out``: its branch file
-    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept). Returns the
+    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept; the drilling record of ``td``'s
+    well and string, so ``rodcont export`` rebuilds each point in drilling terms). Returns the
     :class:`rodcont.branch.Branch`."""
+    if td.well is None or td.string is None:
+        raise DrillingError("trace_bit_force needs the equilibrium of torque_and_drag (it knows its well and string)")
     from .branch import Branch
     from .drivers.trace import TraceOptions, _close_output, _open_output, file_meta, run
     sysm, x = td.system, td.x
@@ -626,7 +632,8 @@ def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, o
     opts = TraceOptions(p_range=(lo, hi), direction=1 if hi - T0 >= T0 - lo else -1, ds=ds, ds_max=ds_max,
                         N_max=N_max, max_error=max_error)
     attrs = file_meta(sysm.rod, T0, sysm.disc.N, sysm.disc.k, "T", opts, sysm,
-                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm)))
+                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm),
+                           drilling=drilling_record(td.well, td.string, td)))
     branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "T", attrs=attrs, curve=sysm.curve, wall=sysm.wall)
     writer, recorder = _open_output(out, overwrite, attrs, 1, branch, sysm)
     try:
@@ -724,21 +731,25 @@ def read_record(text: str) -> dict:
         raise DrillingError(f"damaged drilling record ({type(exc).__name__}: {exc})") from None
 
 
-def rebuild(record: dict, depth: float, breakpoints, coefficients, force_scale: float) -> TorqueDrag:
+def rebuild(record: dict, depth: float, breakpoints, coefficients, force_scale: float,
+            T: float | None = None) -> TorqueDrag:
     """The stored equilibrium with its bit at ``depth``: the string placed there (:func:`place_string`), its
     system built as the solve built it (:func:`build_system`, on the stored ``breakpoints`` with the contact
     law's ``force_scale``) and the stored ``coefficients`` expanded; a :class:`TorqueDrag` (``error`` NaN:
-    not re-estimated)."""
+    not re-estimated). ``T``: the point's axial force at the bit (a trace in it, :func:`trace_bit_force`; WOB
+    ``-T``), default the record's WOB."""
     from .ends import bit_force
     from .loads import Friction
     placed = place_string(record["well"], record["string"], float(depth))
     op, mu = record["operation"], record["mu"]
+    T = bit_force(record["wob"]) if T is None else float(T)
     b = np.asarray(breakpoints, float)
-    sysm = build_system(placed, Friction(mu, placed.radius, op), bit_force(record["wob"]), record["bit_torque"],
+    sysm = build_system(placed, Friction(mu, placed.radius, op), T, record["bit_torque"],
                         record["well"].eps, b.size - 1, record["k"], force_scale=float(force_scale), breakpoints=b)
     if sysm.disc.breakpoints.size != b.size or not np.allclose(sysm.disc.breakpoints, b, rtol=0, atol=1e-9 * b[-1]):
         raise DrillingError(f"the stored mesh at depth {depth:g} m does not fit the string placed there")
     x = sysm.expanded(np.asarray(coefficients, float))
     if x.size != sysm.disc.size:
         raise DrillingError(f"the stored solution at depth {depth:g} m does not fit the string placed there")
-    return _result(sysm, x, placed, op, mu, record["wob"], record["bit_torque"], math.nan)
+    return _result(sysm, x, placed, op, mu, -T if T else 0.0, record["bit_torque"], math.nan, record["well"],
+                   record["string"])
