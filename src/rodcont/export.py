@@ -38,8 +38,9 @@ In a conduit (a branch file that holds contact data) also, as
 A drill string's file (a trip in bit depth, ``rodcont trace --param depth``, ``solve --string --out``, or a trace
 in the force at the bit, :func:`rodcont.drilling.trace_bit_force`) holds the drilling record
 (:func:`rodcont.drilling.drilling_record`): each point is rebuilt with the string placed at its own depth (a trace
-in ``T``: the file's depth, the point's ``T``; :func:`drill_point`), ``S`` is the measured depth from the rig (``S = depth`` at the
-bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the contact columns are
+in ``T``: the file's depth, the point's ``T``; :func:`drill_point`), ``S`` is the measured depth from the rig
+(``S = depth`` at the bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the
+contact columns are
 the drilling ones of :class:`rodcont.drilling.TorqueDrag`'s profile: ``axial_force`` (at ``S = 0`` the hook
 load), ``torque`` ``M = -m`` (at ``S = 0`` the surface torque), ``pressure``, ``gap``, and ``in_contact`` 1 where
 the gap is below 1 % of the clearance. ``grid="mesh"`` samples the solution's own contact grid, on which a
