@@ -14,7 +14,7 @@ import pytest
 
 from rodcont.branchfile import load_branch
 from rodcont.contact import MAX_PENETRATION
-from rodcont.drilling import DrillingError, DrillString, Section, Well, read_record
+from rodcont.drilling import DrillingError, DrillString, Section, Well, read_record, torque_and_drag, trace_bit_force
 from rodcont.drivers.trip import trip
 from rodcont.export import drill_point, export_point
 
@@ -99,6 +99,48 @@ def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file
     arrays = {a.get("Name"): a.text.split() for a in ET.parse(vtp).iter("DataArray")}
     assert float(arrays["axial_force"][0]) == pytest.approx(hook, rel=1e-8)
     assert float(arrays["S"][-1]) == depth
+
+
+@pytest.fixture(scope="module")
+def wob_trace(tmp_path_factory):
+    """Rotating off bottom at 300 m, then a trace in the force at the bit T from 0 to -20 kN (the weight on bit)."""
+    well, string = Well(STATIONS, hole_diameter=HOLE, friction=0.25), DrillString((COLLAR, PIPE), 0.847)
+    out = str(tmp_path_factory.mktemp("wob") / "wob.h5")
+    trace_bit_force(torque_and_drag(well, string, 300.0, "rotate"), (-2e4, 0.0), out)
+    return out, well, string
+
+
+@pytest.mark.parametrize("point", [1, -1])
+def test_an_exported_point_of_a_trace_in_the_bit_force_is_the_stored_equilibrium(wob_trace, tmp_path, point):
+    """A trace in T (rodcont.drilling.trace_bit_force) keeps the drilling record: export rebuilds its points at the
+    file's depth with each point's own T. On the mesh grid the axial force and the torque at S = 0 are the stored
+    hook load and surface torque (1e-8), the trapezoid rule on the exported pressure the stored side force (1e-10),
+    S runs from 0 to 300 m; Newton on the rebuilt system does not move the stored solution (a rebuild with the
+    record's WOB 0 instead of the point's T moves it by O(1)); the last point's hook load is an independent solve
+    drilling with 20 kN (1e-6, as the trace's own test)."""
+    out, well, string = wob_trace
+    data = load_branch(out)
+    i = data.resolve(point)
+    csv = str(tmp_path / "p.csv")
+    export_point(data, point, csv, "csv", grid="mesh")
+    f = _read_csv(csv)
+    S, P = f["S"], f["pressure"]
+    assert S[0] == 0.0 and S[-1] == 300.0 and np.all(np.diff(S) > 0)
+    hook = float(data.branch["hook_load"][i])
+    assert f["axial_force"][0] == pytest.approx(hook, rel=1e-8)
+    assert f["torque"][0] == pytest.approx(float(data.branch["surface_torque"][i]), rel=1e-8)
+    assert np.sum(0.5 * (P[1:] + P[:-1]) * np.diff(S)) == pytest.approx(float(data.branch["side_force"][i]),
+                                                                          rel=1e-10)
+    td = drill_point(data, i)
+    assert td.wob == -float(data.branch["T"][i]) > 0
+    r = td.system.disc.newton(td.x, td.system.base, tol=1e-10)
+    assert r.converged and np.max(np.abs(r.x - td.x)) <= 1e-8 * np.max(np.abs(td.x))
+    with open(csv) as fh:
+        head = [ln for ln in fh if ln.startswith("# ")]
+    assert "# param: T\n" in head and "# depth: 300.0\n" in head
+    if point == -1:
+        assert data.branch["T"][i] == -2e4
+        assert hook == pytest.approx(torque_and_drag(well, string, 300.0, "drill", wob=2e4).hook_load, rel=1e-6)
 
 
 def test_the_trip_file_records_the_well_and_the_string(trip_file):

@@ -736,6 +736,10 @@ def _open(path: str):
 
 
 def _root_attrs(path: str, f) -> dict:
+    if f.attrs.get("kind") == "broomstick":  # rodcont's, but curves against depth with no equilibria in it
+        raise BranchFileError(f"{path}: a broomstick file (hook loads and torques against bit depth, no stored "
+                              f"equilibria): rodcont plot draws it; for a string's shape or fields use a trip's "
+                              f"file (trace --param depth --out) or solve --string --out")
     if "rodcont_version" not in f.attrs:
         raise BranchFileError(f"{path}: an HDF5 file, but not a rodcont branch file")
     try:

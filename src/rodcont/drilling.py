@@ -310,7 +310,8 @@ class TorqueDrag:
     """One equilibrium of the string: ``hook_load`` (N, the axial force at the rig), ``surface_torque`` (N m),
     profiles against MD on a fine grid (``profile``: ``S``, ``axial_force``, ``torque``, ``pressure`` the wall force
     per length, ``gap``, ``in_contact``), ``side_force`` (the wall's total), the contact ``zones``, the error
-    estimate and the mesh size ``N``; ``system``, ``x``: the solved rod (:class:`rodcont.system.RodSystem`)."""
+    estimate and the mesh size ``N``; ``system``, ``x``: the solved rod (:class:`rodcont.system.RodSystem`);
+    ``well``, ``string``: what it was solved for (a file's drilling record, :func:`drilling_record`)."""
 
     depth: float
     operation: Operation
@@ -327,6 +328,8 @@ class TorqueDrag:
     system: object = field(repr=False)
     x: np.ndarray = field(repr=False)
     placed: StringInWell = field(repr=False)
+    well: Well | None = field(default=None, repr=False)
+    string: DrillString | None = field(default=None, repr=False)
 
     @property
     def params(self) -> np.ndarray:
@@ -466,7 +469,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
                 sysm, x = _loaded_gradually(placed, mu, op, T, bit_torque, well.eps, N, k, sysm.model.contact_scale,
                                             tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
-    return _result(sysm, x, placed, op, mu, wob, bit_torque, err)
+    return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
 
 
 def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step: float = 0.25):
@@ -509,7 +512,7 @@ def _warm(placed, friction, T, bit_torque, eps, k, start, tol):
     return (sysm, r.x) if r.converged else (None, None)
 
 
-def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
+def _result(sysm, x, placed, op, mu, wob, bit_torque, err, well=None, string=None) -> TorqueDrag:
     from .ends import axial_force_and_torque
     model, disc = sysm.model, sysm.disc
     p = disc.full_params(x, sysm.base)
@@ -520,7 +523,7 @@ def _result(sysm, x, placed, op, mu, wob, bit_torque, err) -> TorqueDrag:
     profile = dict(S=con["S"], axial_force=F, torque=M, pressure=con["pressure"], gap=con["gap"],
                    in_contact=con["gap"] <= 0.01 * model.wall.clearance_at(con["S"]))
     return TorqueDrag(float(placed.curve.length), op, mu, float(wob), float(bit_torque), float(F[0]), float(M[0]),
-                      profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed)
+                      profile, con["side_force"], con["zones"], float(err), disc.N, sysm, x, placed, well, string)
 
 
 # --------------------------------------------------------------------------
@@ -540,21 +543,53 @@ def joint_edges(depth: float, joint_length: float = JOINT_LENGTH) -> np.ndarray:
     return np.concatenate([[0.0], L - joint_length * np.arange(n - 1, 0, -1), [L]])
 
 
+def collocated_integral(sysm, x, p, edges) -> np.ndarray:
+    """The wall's force ``integral of p dS`` between successive ``edges`` (increasing, in ``[0, L]``) as the collocation
+    equations see it: on each mesh interval ``p`` is the polynomial through its values at the interval's ``k``
+    collocation points (where alone the equations load the rod), integrated exactly over each piece. Over a whole
+    interval that is the Gauss rule of the collocation points, the load the discrete force balance carries; a fine
+    sampling of the law on the spline instead misreads a point contact narrower than an interval (a straight rod's
+    midspan contact at eps = 1e-6: 3.5e-3 below the exact reaction, this 1.2e-6; tests/test_drilling_joints.py)."""
+    disc = sysm.disc
+    b, k = disc.breakpoints, disc.k
+    P = sysm.model.contact(disc, x, p, S=disc.S)["pressure"].reshape(b.size - 1, k)
+    cuts = np.union1d(b, np.clip(np.asarray(edges, float), b[0], b[-1]))
+    parent = np.clip(np.searchsorted(b, 0.5 * (cuts[1:] + cuts[:-1]), side="right") - 1, 0, b.size - 2)
+    h = np.diff(b)[parent]
+    g, wg = np.polynomial.legendre.leggauss(k)
+    nodes = 0.5 * (g + 1.0)                      # the collocation points on [0, 1]
+    ta, te = (cuts[:-1] - b[parent]) / h, (cuts[1:] - b[parent]) / h
+    t = 0.5 * (ta + te)[:, None] + 0.5 * (te - ta)[:, None] * g[None, :]   # k Gauss points of each piece
+    # Lagrange basis of the nodes at t: exact for the degree k - 1 interpolant with k points per piece
+    diff = t[:, :, None] - nodes[None, None, :]
+    basis = np.ones(t.shape + (k,))
+    for j in range(k):
+        others = [i for i in range(k) if i != j]
+        basis[:, :, j] = np.prod(diff[:, :, others], axis=2) / np.prod(nodes[j] - nodes[others])
+    piece = 0.5 * (te - ta) * h * np.einsum("q,pqj,pj->p", wg, basis, P[parent])
+    edges = np.asarray(edges, float)
+    mid = 0.5 * (cuts[1:] + cuts[:-1])
+    inside = (mid > edges[0]) & (mid < edges[-1])   # the pieces between the first and the last edge
+    which = np.searchsorted(edges, mid[inside], side="right") - 1
+    return np.bincount(which, weights=piece[inside], minlength=edges.size - 1)
+
+
 def joint_side_forces(td: TorqueDrag, joint_length: float = JOINT_LENGTH) -> dict:
     """The wall's force on each joint, ``integral of p dS`` over it (``p`` the wall force per unit MD, the contact
-    law's pressure), by Gauss-Legendre with 16 points on every piece between the mesh's breakpoints and the joints'
-    ends (a point contact's peak spans a few pieces: 8 points leave 1e-5 of the total, a trapezoid rule on 16 points
-    per piece 4e-4). Arrays from the rig down: ``top``, ``bottom`` (MD, m), ``side_force`` (N), ``max_pressure``
-    (N/m, the largest ``p`` at those points of the joint); their sum is the string's whole side force."""
+    law's pressure) as the collocation equations carry it (:func:`collocated_integral`: a point contact such as a
+    collar's end on the wall gets the force the rod's balance has there). Arrays from the rig down: ``top``,
+    ``bottom`` (MD, m), ``side_force`` (N), ``max_pressure`` (N/m, the largest ``p`` at 16 Gauss points of every
+    piece between the mesh's breakpoints and the joints' ends); their sum is the Gauss rule of the collocation
+    points over the string."""
     sysm, x = td.system, td.x
     edges = joint_edges(td.depth, joint_length)
+    force = collocated_integral(sysm, x, td.params, edges)
     cuts = np.union1d(sysm.disc.breakpoints, edges)
-    g, wg = np.polynomial.legendre.leggauss(16)
+    g = np.polynomial.legendre.leggauss(16)[0]
     mid, half = 0.5 * (cuts[1:] + cuts[:-1]), 0.5 * np.diff(cuts)
     S = (mid[:, None] + half[:, None] * g[None, :]).ravel()
     P = sysm.model.contact(sysm.disc, x, td.params, S=S)["pressure"].reshape(mid.size, g.size)
     joint = np.searchsorted(edges, mid, side="right") - 1   # the joint each piece lies in
-    force = np.bincount(joint, weights=half * (P @ wg), minlength=edges.size - 1)
     peak = np.zeros(edges.size - 1)
     np.maximum.at(peak, joint, P.max(axis=1))
     return dict(top=edges[:-1], bottom=edges[1:], side_force=force, max_pressure=peak)
@@ -616,8 +651,11 @@ def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, o
                     ds: float = 0.1, ds_max: float = 0.5, N_max: int = 4000, max_error: float = 1e-6):
     """Trace the solved string ``td`` in the axial force at the bit ``T`` (``-WOB``) over ``T_range`` (from the
     solution's ``T`` towards the other end) with :func:`rodcont.drivers.trace.run`; ``out``: its branch file
-    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept). Returns the
+    (columns ``hook_load`` and ``surface_torque`` per point; the wall's steps kept; the drilling record of ``td``'s
+    well and string, so ``rodcont export`` rebuilds each point in drilling terms). Returns the
     :class:`rodcont.branch.Branch`."""
+    if td.well is None or td.string is None:
+        raise DrillingError("trace_bit_force needs the equilibrium of torque_and_drag (it knows its well and string)")
     from .branch import Branch
     from .drivers.trace import TraceOptions, _close_output, _open_output, file_meta, run
     sysm, x = td.system, td.x
@@ -626,7 +664,8 @@ def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, o
     opts = TraceOptions(p_range=(lo, hi), direction=1 if hi - T0 >= T0 - lo else -1, ds=ds, ds_max=ds_max,
                         N_max=N_max, max_error=max_error)
     attrs = file_meta(sysm.rod, T0, sysm.disc.N, sysm.disc.k, "T", opts, sysm,
-                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm)))
+                      dict(depth=td.depth, operation=td.operation.name, join_unknowns=_join_unknowns(sysm),
+                           drilling=drilling_record(td.well, td.string, td)))
     branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "T", attrs=attrs, curve=sysm.curve, wall=sysm.wall)
     writer, recorder = _open_output(out, overwrite, attrs, 1, branch, sysm)
     try:
@@ -724,21 +763,25 @@ def read_record(text: str) -> dict:
         raise DrillingError(f"damaged drilling record ({type(exc).__name__}: {exc})") from None
 
 
-def rebuild(record: dict, depth: float, breakpoints, coefficients, force_scale: float) -> TorqueDrag:
+def rebuild(record: dict, depth: float, breakpoints, coefficients, force_scale: float,
+            T: float | None = None) -> TorqueDrag:
     """The stored equilibrium with its bit at ``depth``: the string placed there (:func:`place_string`), its
     system built as the solve built it (:func:`build_system`, on the stored ``breakpoints`` with the contact
     law's ``force_scale``) and the stored ``coefficients`` expanded; a :class:`TorqueDrag` (``error`` NaN:
-    not re-estimated)."""
+    not re-estimated). ``T``: the point's axial force at the bit (a trace in it, :func:`trace_bit_force`; WOB
+    ``-T``), default the record's WOB."""
     from .ends import bit_force
     from .loads import Friction
     placed = place_string(record["well"], record["string"], float(depth))
     op, mu = record["operation"], record["mu"]
+    T = bit_force(record["wob"]) if T is None else float(T)
     b = np.asarray(breakpoints, float)
-    sysm = build_system(placed, Friction(mu, placed.radius, op), bit_force(record["wob"]), record["bit_torque"],
+    sysm = build_system(placed, Friction(mu, placed.radius, op), T, record["bit_torque"],
                         record["well"].eps, b.size - 1, record["k"], force_scale=float(force_scale), breakpoints=b)
     if sysm.disc.breakpoints.size != b.size or not np.allclose(sysm.disc.breakpoints, b, rtol=0, atol=1e-9 * b[-1]):
         raise DrillingError(f"the stored mesh at depth {depth:g} m does not fit the string placed there")
     x = sysm.expanded(np.asarray(coefficients, float))
     if x.size != sysm.disc.size:
         raise DrillingError(f"the stored solution at depth {depth:g} m does not fit the string placed there")
-    return _result(sysm, x, placed, op, mu, record["wob"], record["bit_torque"], math.nan)
+    return _result(sysm, x, placed, op, mu, -T if T else 0.0, record["bit_torque"], math.nan, record["well"],
+                   record["string"])

@@ -35,10 +35,12 @@ In a conduit (a branch file that holds contact data) also, as
                  with (``contact_level P``), else 0
 ===============  ====================================================================
 
-A drill string's file (a trip in bit depth, ``rodcont trace --param depth``, or ``solve --string --out``)
-holds the drilling record (:func:`rodcont.drilling.drilling_record`): each point is rebuilt with the string
-placed at its own depth (:func:`drill_point`), ``S`` is the measured depth from the rig (``S = depth`` at the
-bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the contact columns are
+A drill string's file (a trip in bit depth, ``rodcont trace --param depth``, ``solve --string --out``, or a trace
+in the force at the bit, :func:`rodcont.drilling.trace_bit_force`) holds the drilling record
+(:func:`rodcont.drilling.drilling_record`): each point is rebuilt with the string placed at its own depth (a trace
+in ``T``: the file's depth, the point's ``T``; :func:`drill_point`), ``S`` is the measured depth from the rig
+(``S = depth`` at the bit), ``x, y, z`` are east, north, up in m (true vertical depth ``-z``), forces in N, and the
+contact columns are
 the drilling ones of :class:`rodcont.drilling.TorqueDrag`'s profile: ``axial_force`` (at ``S = 0`` the hook
 load), ``torque`` ``M = -m`` (at ``S = 0`` the surface torque), ``pressure``, ``gap``, and ``in_contact`` 1 where
 the gap is below 1 % of the clearance. ``grid="mesh"`` samples the solution's own contact grid, on which a
@@ -289,19 +291,25 @@ def is_drill_string(data) -> bool:
 
 def drill_point(data, i: int):
     """Stored point ``i`` of a drill string's file rebuilt (:func:`rodcont.drilling.rebuild`): the string placed at
-    the point's depth, its system on the stored mesh and contact law; a one-line :class:`ExportError` for a file
-    written before the drilling record (rodcont before its version 1)."""
+    the point's depth (a trace in the bit's force, :func:`rodcont.drilling.trace_bit_force`: at the file's depth,
+    with the point's ``T``), its system on the stored mesh and contact law; a one-line :class:`ExportError` for a
+    file written before the drilling record (rodcont before its version 1)."""
     from .drilling import DrillingError, read_record, rebuild
-    if "drilling" not in data.attrs or data.param != "depth" or "force_scale" not in data.branch:
-        what = "trip file" if data.param == "depth" else "drill string's file (a trace in the bit's force)"
+    trip = data.param == "depth"
+    if "drilling" not in data.attrs or not (trip and "force_scale" in data.branch
+                                            or data.param == "T" and "depth" in data.attrs):
+        what = "trip file" if trip else "drill string's file (a trace in the bit's force)"
         raise ExportError(f"{data.label}: this {what} predates the drilling record export rebuilds a point from "
-                          f"(the well, the string and the operation): re-run the trip" if data.param == "depth"
-                          else f"{data.label}: export cannot rebuild this {what}: export a trip "
-                               f"(trace --param depth) or solve --string --out")
+                          f"(the well, the string and the operation): re-run the "
+                          f"{'trip' if trip else 'trace (rodcont.drilling.trace_bit_force)'}")
     try:
         record = read_record(str(data.attrs["drilling"]))
-        return rebuild(record, float(data.branch["depth"][i]), data.meshes[i], data.coefficients[i],
-                       float(data.branch["force_scale"][i]))
+        if trip:
+            return rebuild(record, float(data.branch["depth"][i]), data.meshes[i], data.coefficients[i],
+                           float(data.branch["force_scale"][i]))
+        # a trace in T keeps one law (its force scale in the wall's spec) at the depth it was solved at
+        return rebuild(record, float(data.attrs["depth"]), data.meshes[i], data.coefficients[i],
+                       float(data.wall.force_scale), T=float(data.branch["T"][i]))
     except DrillingError as exc:
         raise ExportError(f"{data.label}: point {i}: {exc}") from None
 
@@ -335,11 +343,12 @@ def _drill_meta(data, i: int, label, samples: int, grid: str) -> dict:
     from . import __version__
     b = data.branch
     meta = dict(rodcont_version=__version__, source=os.path.abspath(data.path), point=int(i), label=str(label),
-                kind=str(b["kind"][i]), param="depth", depth=float(b["depth"][i]),
+                kind=str(b["kind"][i]), param=str(data.param),
+                depth=float(b["depth"][i] if data.param == "depth" else data.attrs["depth"]),
                 operation=str(data.attrs.get("operation", "")),
                 S="measured depth from the rig (m)", axes="x east, y north, z up (m; true vertical depth = -z)",
                 units="SI: m, N, N m", samples=int(samples), grid=grid)
-    for name in ("hook_load", "surface_torque", "side_force", "min_gap", "force_scale", "error"):
+    for name in ("T", "hook_load", "surface_torque", "side_force", "min_gap", "force_scale", "error"):
         if name in b:
             meta[name] = float(b[name][i])
     return meta

@@ -45,6 +45,45 @@ LABELS = {"phi_L": "end rotation  Φ = φ(L)  [rad]", "stretch": "stretch  (ℓ 
           "l0": "unstressed length ℓ0", "helical_waves": "helical waves", "min_alignment": "min d3·K3",
           "gamma": "Γ = T / (w L)", "T": "tension T", "w": "weight w", "EI": "EI", "GJ": "GJ", "EA": "EA",
           "side_force": "side force  ∫ p dS", "min_gap": "min gap  min (c − |Δ|)", "contact_zones": "contact zones"}
+#: a drill string's columns (a trip, a trace in the bit's force): SI units
+DRILL_LABELS = {"depth": "bit measured depth  [m]", "hook_load": "hook load  [N]",
+                "surface_torque": "surface torque  [N m]", "T": "axial force at the bit  T = −WOB  [N]",
+                "side_force": "side force  ∫ p dS  [N]", "min_gap": "min gap  min (c − |Δ|)  [m]",
+                "max_joint_side_force": "largest side force on a joint  [N]",
+                "buckling_ratio": "largest buckling ratio  −F / F_s", "contact_zones": "contact zones"}
+#: the columns a drill string's plot may use beside the rod's
+DRILL_COLUMNS = ("depth", "hook_load", "surface_torque", "max_joint_side_force", "buckling_ratio")
+
+
+def is_drill_string(attrs) -> bool:
+    """The root attributes of a drill string's file (a trip in depth, solve --string --out, a trace in the bit's
+    force): its plots default to the hook load against depth (or T), in SI units."""
+    return attrs.get("param") == "depth" or "drilling" in attrs or "join_unknowns" in attrs
+
+
+def default_axes(attrs) -> tuple:
+    """``(x, y)`` a file is drawn with when ``--x``/``--y`` are not given: its continued parameter (the stretch for
+    a trace in Φ) and ``phi_L``; a user's problem (rodcont.bvp) names its own ``y``, a drill string's is its hook
+    load."""
+    param = attrs.get("param", "phi_L")
+    return (param if param != "phi_L" else "stretch",
+            "hook_load" if is_drill_string(attrs) else attrs.get("plot_y", "phi_L"))
+
+
+def _label(name, drill: bool) -> str:
+    return DRILL_LABELS.get(name, LABELS.get(name, name)) if drill else LABELS.get(name, name)
+
+
+def _legend(d) -> str:
+    """A drill string's file in a legend: its operation and friction factor (the drilling record's)."""
+    import json
+    mu = ""
+    try:
+        m = json.loads(str(d.attrs["drilling"]))["mu"]
+        mu = f", μ = {m:g}" if isinstance(m, (int, float)) else ", μ by MD"
+    except (KeyError, ValueError, TypeError):
+        pass
+    return f"{d.attrs.get('operation', 'drill string')}{mu}"
 
 
 def _segments(x, y, unstable):
@@ -83,12 +122,9 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
     for n, d in enumerate(files):
         c = colours(n % 10)
         param = d.attrs.get("param", "phi_L")
-        xv = x or (param if param != "phi_L" else "stretch")
-        yv = y or d.attrs.get("plot_y", "phi_L")  # a user's problem (rodcont.bvp) names its own
-        g = d.attrs.get("gamma")
-        label = (labels[n] if labels and n < len(labels) else str(d.attrs.get("problem")) if "problem" in d.attrs else
-                 (f"Γ = {g:g}" if isinstance(g, float) and math.isfinite(g) else f"T = {d.attrs.get('T', 0):g}")
-                 + {"diagram": " (diagram)", "fold_curve": f" (fold locus in {param})"}.get(d.attrs.get("kind"), ""))
+        dx, dy = default_axes(d.attrs)
+        xv, yv = x or dx, y or dy
+        label = labels[n] if labels and n < len(labels) else _file_label(d, param)
         is_diagram = d.attrs.get("kind") == "diagram"
         for j, b in enumerate(d.branches):
             br = b.branch
@@ -115,32 +151,45 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
             if is_diagram:
                 ax.plot(X[:1], Y[:1], "x", color=c, ms=6)
     allx = np.concatenate(xs_all) if xs_all else np.zeros(1)
-    xname = x or ("stretch" if kinds != {"fold_curve"} else files[0].attrs.get("param"))
+    drill = all(is_drill_string(d.attrs) for d in files)
+    # the first file's axes, as its curve is drawn (a trace in T or depth is not against the stretch)
+    xname, yname = x or default_axes(files[0].attrs)[0], y or default_axes(files[0].attrs)[1]
     if xscale is None:
         xscale = "log" if xname == "stretch" and np.all(allx > 0) and allx.max() > 30 * allx.min() else "linear"
     ax.set_xscale(xscale)
-    ax.set_xlabel(LABELS.get(xname, xname))
-    yname = y or files[0].attrs.get("plot_y", "phi_L")
-    ax.set_ylabel(LABELS.get(yname, yname))
+    ax.set_xlabel(_label(xname, drill))
+    ax.set_ylabel(_label(yname, drill))
     ax.grid(True, alpha=0.3)
     extra = "   -- unstable" if any("unstable_modes" in b.branch for d in files for b in d.branches) else ""
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0,
               title=f"○ fold (waves)   × end{extra}", title_fontsize=7)
     ax.set_title(title or (f"Branches of {files[0].attrs['problem']}" if kinds == {"bvp"}
+                           else "Torque and drag: a drill string in its well" if drill
                            else "Response diagram: twisted heavy clamped rod"))
     fig.tight_layout()
     save_figure(fig, path)
     return fig
 
 
+def _file_label(d, param) -> str:
+    """A file's legend entry: a user's problem, a drill string's operation, else its Γ (or T)."""
+    if "problem" in d.attrs:
+        return str(d.attrs.get("problem"))
+    if is_drill_string(d.attrs):
+        return _legend(d)
+    g = d.attrs.get("gamma")
+    return ((f"Γ = {g:g}" if isinstance(g, float) and math.isfinite(g) else f"T = {d.attrs.get('T', 0):g}")
+            + {"diagram": " (diagram)", "fold_curve": f" (fold locus in {param})"}.get(d.attrs.get("kind"), ""))
+
+
 def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "", reference=None,
-                 tube=None, contacts=()) -> Figure:
+                 tube=None, contacts=(), axes=("e1", "e2", "e3")) -> Figure:
     """3D centrelines ``r(S)`` (each ``(3, n)``) with equal axis scales; returns the figure (saved to ``path``).
 
     ``reference``: the reference curve's points ``(3, n)`` (default: the straight
     span along e1); ``tube``: the conduit's wall as three ``(n_S, n_theta)``
     arrays, drawn translucent; ``contacts``: points ``(3, m)`` of each curve in
-    contact with the wall, drawn as red dots.
+    contact with the wall, drawn as red dots; ``axes``: the axes' labels.
     """
     fig = _figure(8, 5)
     ax = fig.add_subplot(projection="3d")
@@ -163,9 +212,9 @@ def shape_figure(curves: list[tuple[np.ndarray, str]], path: str, title: str = "
     half = 0.5 * float(np.max(allpts.max(axis=1) - allpts.min(axis=1)))
     for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
         setter(c - half, c + half)
-    ax.set_xlabel("e1")
-    ax.set_ylabel("e2")
-    ax.set_zlabel("e3")
+    ax.set_xlabel(axes[0])
+    ax.set_ylabel(axes[1])
+    ax.set_zlabel(axes[2])
     ax.legend(fontsize=8)
     ax.set_title(title)
     fig.tight_layout()

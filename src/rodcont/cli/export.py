@@ -186,7 +186,8 @@ def export_cmd(file, point, all_points, branch, samples, grid, fmt, output, over
     except OSError as exc:
         raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     where = (f"depth {float(data.branch['depth'][i]):.10g} m" if data.param == "depth"
-             else f"Φ = {float(data.branch['phi_L'][i]):.10g}")
+             else f"T = {float(data.branch['T'][i]):.10g} N at depth {float(data.attrs['depth']):.10g} m"
+             if data.param == "T" and "drilling" in data.attrs else f"Φ = {float(data.branch['phi_L'][i]):.10g}")
     click.echo(f"wrote {output} (point {i}, {where}, {samples} samples)")
 
 

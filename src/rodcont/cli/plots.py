@@ -14,8 +14,11 @@ def _check_plot_variables(data, xvar, yvar) -> None:
     """``--x``/``--y`` among the rod's variables (the contact columns where every file holds them), or, for
     files of a user's problem, their columns."""
     from ..branch import CONTACT_COLUMNS
-    from ..plots import PLOT_VARIABLES
+    from ..plots import DRILL_COLUMNS, PLOT_VARIABLES, is_drill_string
     allowed = PLOT_VARIABLES + ("gamma", "T", "w", "EI", "GJ", "EA") + CONTACT_COLUMNS
+    if any(is_drill_string(d.attrs) for d in data):  # a drill string's columns, where every file holds them
+        allowed += tuple(c for c in DRILL_COLUMNS if all(c in b.branch for d in data for b in d.branches))
+        _same_axes(data, xvar, yvar)
     users = [b for d in data if d.attrs.get("kind") == "bvp" for b in d.branches]
     if users:
         common = set.intersection(*(set(b.table) for b in users)) - {"kind", "located"}
@@ -28,6 +31,17 @@ def _check_plot_variables(data, xvar, yvar) -> None:
                 if any(v not in b.branch for b in d.branches):
                     raise UserError(f"{name} {v}: {d.path} holds no {v} (a branch traced in a conduit does: "
                                     f"trace --conduit FILE)")
+
+
+def _same_axes(data, xvar, yvar) -> None:
+    """A drill string's file drawn with others on the axes their defaults give: one variable each (a trip in depth
+    beside a trace in T, or a rod's Φ, is refused unless --x and --y name them)."""
+    from ..plots import default_axes
+    for a, (name, given) in enumerate((("--x", xvar), ("--y", yvar))):
+        seen = sorted({default_axes(d.attrs)[a] for d in data})
+        if given is None and len(seen) > 1:
+            raise UserError(f"{name}: the files are drawn against different variables by default "
+                            f"({', '.join(seen)}): name one with {name}")
 
 
 @main_group.command()
@@ -49,6 +63,9 @@ def plot(files, output, xvar, yvar, labels, log, title, overwrite):
         raise UserError(f"-o {output}: plots are written as PNG (name it .png)")
     if labels and len(labels) != len(files):
         raise UserError(f"--label: give one per file ({len(files)}), got {len(labels)}")
+    from ..drivers.broomstick import is_broomstick_file
+    if any(os.path.isfile(f) and is_broomstick_file(f) for f in files):
+        return _plot_broomstick(files, output, xvar, yvar, labels, log, title)
     data = [load_any_file(f) for f in files]
     image_out(output, files, overwrite, loaded=data)  # nor a survey the files' reference curves read
     _check_plot_variables(data, xvar, yvar)
@@ -60,6 +77,26 @@ def plot(files, output, xvar, yvar, labels, log, title, overwrite):
                          xscale=None if log is None else ("log" if log else "linear"))
     except (ValueError, OverflowError) as exc:
         raise UserError(f"cannot draw: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
+    click.echo(f"wrote {output}")
+
+
+def _plot_broomstick(files, output, xvar, yvar, labels, log, title) -> None:
+    """``plot B.h5`` of a broomstick file: the broomstick's own figure (hook loads and the rotating torque against
+    depth, the soft string beside), redrawn from the file; alone, and with no axes to choose."""
+    from ..drivers.broomstick import plot_broomstick, read_broomstick
+    if len(files) > 1:
+        raise UserError("a broomstick file is plotted alone (its figure has its own axes): give one file")
+    given = [name for name, v in (("--x", xvar), ("--y", yvar), ("--label", labels), ("--log/--linear", log))
+             if v not in (None, ())]
+    if given:
+        raise UserError(f"{given[0]}: a broomstick file is drawn as the broomstick (hook load and surface torque "
+                        f"against bit depth); only --title applies")
+    try:
+        plot_broomstick(read_broomstick(files[0]), output, title)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     except OSError as exc:
         raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
     click.echo(f"wrote {output}")
@@ -83,6 +120,9 @@ def shape(file, points, branch, output, overwrite):
         raise UserError(f"-o {output}: shapes are written as PNG (name it .png)")
     data = load_branch_file(file, branch)
     image_out(output, [file], overwrite, loaded=(data,))  # nor the survey its reference curve reads
+    from ..export import is_drill_string
+    if is_drill_string(data):  # each point has its own depth, sections and joins: rebuilt from the record
+        return _drill_shape(file, data, points, output)
     wall = data.wall
     model = EulerianRod(data.rod, data.curve, wall)
     # inside a conduit the deflections and the clearance are drawn magnified (else a thin pipe is a line)
@@ -135,6 +175,54 @@ def _centrelines(file, data, model, points, magnify):
     if not all(np.all(np.isfinite(r)) and np.max(np.abs(r)) < 1e100 for r, _ in curves):
         raise UserError(f"{file}: the stored solution gives a centreline that is not finite")
     return curves, contacts
+
+
+def _drill_points(file, data, points) -> list:
+    """The points ``points`` of a drill string's file rebuilt (:func:`rodcont.export.drill_point`), one-line
+    errors for a label the file does not hold or a file without the drilling record."""
+    from ..branchfile import BranchFileError
+    from ..export import ExportError, drill_point
+    out = []
+    for label in points:
+        try:
+            out.append((data.resolve(label), drill_point(data, data.resolve(label))))
+        except (BranchFileError, ExportError) as exc:
+            raise UserError(str(exc)) from None
+    return out
+
+
+def _drill_shape(file, data, points, output) -> None:
+    """``shape`` of a trip's (or a drill string's) points: each centreline in its own well path to its bit (east,
+    north, up), the deflections from the hole's axis and the deepest point's clearance magnified alike, the wall
+    contacts (gap below 1 % of the clearance) as dots."""
+    import numpy as np
+
+    from ..plots import shape_figure
+    tds = _drill_points(file, data, points)
+    deep = max((td for _, td in tds), key=lambda td: td.depth)
+    wall = deep.system.model.wall
+    magnify = max(1.0, 0.12 * deep.depth / wall.c_max)
+    curves, contacts = [], []
+    for i, td in tds:
+        S = np.linspace(0.0, td.depth, 400)
+        R = td.placed.curve.jet(S).R
+        r = R + magnify * (td.system.model.centreline(td.system.disc, td.x, S) - R)
+        gap = td.system.model.contact(td.system.disc, td.x, td.params, S=S)["gap"]
+        contacts.append(r[:, gap <= 0.01 * td.system.model.wall.clearance_at(S)])
+        curves.append((r, f"#{i}: bit at {td.depth:.6g} m, hook load {td.hook_load / 1e3:.5g} kN"))
+    if not all(np.all(np.isfinite(r)) for r, _ in curves):
+        raise UserError(f"{file}: the stored solution gives a centreline that is not finite")
+    title = (f"{os.path.basename(file)}  ({data.attrs.get('operation', '')}; east, north, up in m)\n"
+             f"deflections from the hole's axis and clearance drawn ×{magnify:.3g}")
+    try:
+        shape_figure(curves, output, title, reference=deep.placed.curve.jet(np.linspace(0, deep.depth, 400)).R,
+                     tube=_tube(deep.system.model, wall, magnify), contacts=contacts,
+                     axes=("east (m)", "north (m)", "up (m)"))
+    except (ValueError, OverflowError) as exc:
+        raise UserError(f"cannot draw: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot write {output}: {exc.strerror or exc}") from None
+    click.echo(f"wrote {output}")
 
 
 def _tube(model, wall, magnify):

@@ -142,14 +142,42 @@ def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None
         raise
 
 
-def plot_broomstick(b: Broomstick, path: str) -> list:
-    """Hook load (kN) against bit depth, one line per operation and friction factor, the soft string dashed;
-    the rotating surface torque (kN m) against depth beside it; the buckling onsets (:func:`buckling_onsets`) marked
-    on each hook-load curve. Returns the markers drawn: ``(label, operation, mu, hook_load N, depth m)``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (ax, axt) = plt.subplots(1, 2, figsize=(11, 6), sharey=True)
+def read_broomstick(path: str) -> Broomstick:
+    """The broomstick a file of :func:`write_broomstick` holds (its arrays, depths, operations, friction factors);
+    a ``ValueError`` (one line) for another file."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("kind") != "broomstick":
+                raise ValueError(f"{path}: not a broomstick file (rodcont broomstick --out)")
+            ops = tuple(v.decode() if isinstance(v, bytes) else str(v) for v in f["operations"][()])
+            skip = {"depth", "friction", "operations", "sinusoidal_buckling", "helical_buckling"}
+            data = {key: np.asarray(f[key][()], float) for key in f if key not in skip}
+            return Broomstick(np.asarray(f["depth"][()], float), ops,
+                              tuple(float(m) for m in f["friction"][()]), data)
+    except (OSError, KeyError) as exc:
+        raise ValueError(f"{path}: not a readable broomstick file ({type(exc).__name__}: {exc})") from None
+
+
+def is_broomstick_file(path: str) -> bool:
+    """Whether ``path`` is an HDF5 file of :func:`write_broomstick` (False for anything else, unreadable too)."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("kind") == "broomstick"
+    except (OSError, ValueError):
+        return False
+
+
+def broomstick_figure(b: Broomstick, title: str | None = None) -> tuple:
+    """``(figure, markers)``: hook load (kN) against bit depth, one line per operation and friction factor, the
+    soft string dashed; the rotating surface torque (kN m) against depth beside it; the buckling onsets
+    (:func:`buckling_onsets`) marked on each hook-load curve, ``markers`` ``(label, operation, mu, hook_load N,
+    depth m)``. Matplotlib's object interface (no pyplot: the caller's backend is left alone)."""
+    from ..plots import _figure
+    fig = _figure(11, 6)
+    ax = fig.add_subplot(1, 2, 1)
+    axt = fig.add_subplot(1, 2, 2, sharey=ax)
     colours = {"pick-up": "tab:red", "slack-off": "tab:blue", "rotate": "tab:green"}
     for i, op in enumerate(b.operations):
         for j, mu in enumerate(b.mus):
@@ -160,16 +188,7 @@ def plot_broomstick(b: Broomstick, path: str) -> list:
             if op == "rotate":
                 axt.plot(b.surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, label=f"mu {mu:g}")
                 axt.plot(b.soft_surface_torque[:, i, j] / 1e3, b.depths, color=c, alpha=alpha, ls="--")
-    markers = []
-    if "buckling_ratio" in b.data:  # where the string first buckles along each curve: o sinusoidal, x helical
-        for (label, at), marker in zip(buckling_onsets(b).items(), ("o", "x")):
-            for i, j in np.ndindex(*at.shape):
-                if np.isfinite(at[i, j]):
-                    H = np.interp(at[i, j], b.depths, b.hook_load[:, i, j]) if b.depths[-1] > b.depths[0] else \
-                        np.interp(at[i, j], b.depths[::-1], b.hook_load[::-1, i, j])
-                    ax.plot([H / 1e3], [at[i, j]], marker=marker, color="k", ms=6, ls="none",
-                            label=label.replace("_", " ") if not any(m[0] == label for m in markers) else None)
-                    markers.append((label, b.operations[i], b.mus[j], float(H), float(at[i, j])))
+    markers = _mark_onsets(b, ax)
     ax.set_xlabel("hook load (kN)")
     ax.set_ylabel("bit measured depth (m)")
     ax.invert_yaxis()
@@ -177,15 +196,32 @@ def plot_broomstick(b: Broomstick, path: str) -> list:
     axt.set_xlabel("surface torque, rotating off bottom (kN m)")
     if axt.lines:
         axt.legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
-    from ..safeio import commit, discard
-    tmp = f"{path}.tmp{os.getpid()}.png"
-    try:
-        fig.savefig(tmp, dpi=120)
-        commit(tmp, path)
-    except BaseException:
-        discard(tmp)
-        raise
-    finally:
-        plt.close(fig)
+    return fig, markers
+
+
+def _mark_onsets(b: Broomstick, ax) -> list:
+    """Where the string first buckles along each curve: o sinusoidal, x helical (the markers drawn)."""
+    markers = []
+    if "buckling_ratio" not in b.data:
+        return markers
+    for (label, at), marker in zip(buckling_onsets(b).items(), ("o", "x")):
+        for i, j in np.ndindex(*at.shape):
+            if np.isfinite(at[i, j]):
+                H = np.interp(at[i, j], b.depths, b.hook_load[:, i, j]) if b.depths[-1] > b.depths[0] else \
+                    np.interp(at[i, j], b.depths[::-1], b.hook_load[::-1, i, j])
+                ax.plot([H / 1e3], [at[i, j]], marker=marker, color="k", ms=6, ls="none",
+                        label=label.replace("_", " ") if not any(m[0] == label for m in markers) else None)
+                markers.append((label, b.operations[i], b.mus[j], float(H), float(at[i, j])))
+    return markers
+
+
+def plot_broomstick(b: Broomstick, path: str, title: str | None = None) -> list:
+    """:func:`broomstick_figure` written to ``path`` as PNG (atomically, :func:`rodcont.plots.save_figure`).
+    Returns the markers drawn: ``(label, operation, mu, hook_load N, depth m)``."""
+    from ..plots import save_figure
+    fig, markers = broomstick_figure(b, title)
+    save_figure(fig, path, dpi=120)
     return markers

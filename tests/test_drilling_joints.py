@@ -1,0 +1,95 @@
+"""The wall's force over a stretch of the string (rodcont.drilling.collocated_integral, the side force per joint)
+at a point contact, against the exact contact problem solved independently (tests/contact_reference.py: Lagrangian
+shooting of the free spans glued to the wall)."""
+
+import numpy as np
+import pytest
+
+import rodcont
+from contact_reference import heavy_rod_on_flat_wall
+from rodcont.contact import Wall
+from rodcont.drilling import collocated_integral
+from rodcont.rod import RodParameters
+from rodcont.system import RodSystem
+
+C = 0.012   # the Gamma = 1 rod in a straight pipe touches it at midspan only (0.00744 < c < 0.0195)
+
+
+@pytest.fixture(scope="module")
+def point_contact():
+    """The heavy clamped rod (Gamma = 1, Phi = 0) sagging onto the floor of a straight pipe at one point, the
+    law's smoothing eps = 1e-6 (a zone a few micrometres wide, narrower than its mesh interval)."""
+    wall = Wall(C, eps=1e-6, force_scale=10.0)
+    b = rodcont.trace(1.0, wall=wall, phi_max=1e-3)
+    sysm = RodSystem(RodParameters(), gamma=1.0, breakpoints=b.meshes[0], wall=wall)
+    return sysm, b.coefficients[0], sysm.params(0.0)
+
+
+def _sampled_law(sysm, x, p, n=16):
+    """The law integrated on the spline by Gauss-Legendre with ``n`` points per mesh interval (the rule before)."""
+    b = sysm.disc.breakpoints
+    g, wg = np.polynomial.legendre.leggauss(n)
+    mid, half = 0.5 * (b[1:] + b[:-1]), 0.5 * np.diff(b)
+    S = (mid[:, None] + half[:, None] * g[None, :]).ravel()
+    return float(np.sum(half * (sysm.model.contact(sysm.disc, x, p, S=S)["pressure"].reshape(mid.size, n) @ wg)))
+
+
+def test_a_point_contacts_force_is_the_exact_reaction(point_contact):
+    """The midspan point contact: the wall's force over the rod, integrated as the collocation equations carry
+    it, is the shooting solution's reaction for the wall where the smoothed rod reaches it (clearance c plus the
+    rod's penetration) to 1e-5 (measured 1.2e-6), and the reaction for the clearance c to 2e-4 (measured 7.1e-5,
+    the penetration's share); the law sampled on the spline by 16 Gauss points per interval misreads the narrow
+    peak by more than 1e-3 (measured 3.5e-3 low; a trapezoid rule on 16 points per interval 3.3e-3)."""
+    sysm, x, p = point_contact
+    whole = collocated_integral(sysm, x, p, [0.0, 1.0])[0]
+    near = np.linspace(0.49, 0.51, 20001)
+    penetration = -sysm.model.contact(sysm.disc, x, p, S=near)["gap"].min()
+    assert 0 < penetration < 1e-3 * C
+    exact = heavy_rod_on_flat_wall(C + penetration, 10.0)
+    assert exact["regime"] == "point"
+    assert whole == pytest.approx(exact["total_side_force"], rel=1e-5)
+    assert whole == pytest.approx(heavy_rod_on_flat_wall(C, 10.0)["total_side_force"], rel=2e-4)
+    assert abs(_sampled_law(sysm, x, p) / exact["total_side_force"] - 1) > 1e-3
+
+
+def test_the_pieces_tile_the_collocation_rule(point_contact):
+    """Over any cut of the rod the pieces sum to the Gauss rule of the collocation points (the load the discrete
+    force balance carries) to 1e-12; the cut around midspan carries all but the law's small force off the wall,
+    and a cut inside one mesh interval splits it, each piece non-negative."""
+    sysm, x, p = point_contact
+    rule = float(sysm.model.contact(sysm.disc, x, p, S=sysm.disc.S)["pressure"] @ sysm.disc.weights)
+    edges = [0.0, 0.3, 0.5, 0.50001, 0.77, 1.0]
+    parts = collocated_integral(sysm, x, p, edges)
+    assert parts.size == 5 and np.all(parts >= 0)
+    assert parts.sum() == pytest.approx(rule, rel=1e-12)
+    assert parts[1] + parts[2] + parts[3] > 0.999 * rule
+    assert parts[0] == pytest.approx(collocated_integral(sysm, x, p, [0.0, 0.1, 0.3]).sum(), rel=1e-12)
+
+
+def test_a_collars_contact_on_its_joint_is_the_refined_meshs():
+    """Slack-off with the bit at 300 m in the short build-and-hold well (tests/test_drilling_export.py's: a 50 m
+    collar under drill pipe): the joint from 281.72 to 290.86 m carries a contact zone under a metre wide on an
+    adapted mesh of about 200 intervals. Its side force (rodcont.drilling.joint_side_forces) equals, to 1e-3
+    (measured 1e-4), the same joint's on the solution with the mesh halved three times (8 times as many
+    intervals, Newton from the transferred solution), as does the sum over the joints (1e-4, measured 1.2e-5); the
+    law sampled on the spline by 16 Gauss points per piece was 10.8 % off on that joint at the adapted mesh and
+    1.6 % on the sum."""
+    from rodcont.drilling import DrillString, Well, joint_edges, joint_side_forces, torque_and_drag
+    from test_drilling_export import COLLAR, HOLE, PIPE, STATIONS
+    td = torque_and_drag(Well(STATIONS, hole_diameter=HOLE, friction=0.25), DrillString((COLLAR, PIPE), 0.847),
+                         300.0, "slack-off")
+    j = joint_side_forces(td)
+    edges = joint_edges(300.0)
+    k = int(np.searchsorted(edges, 285.0)) - 1
+    assert (j["top"][k], j["bottom"][k]) == pytest.approx((281.72, 290.86))
+    sysm, x = td.system, td.x
+    for _ in range(3):
+        b = sysm.disc.breakpoints
+        fine = sysm.with_mesh(sysm.conform(np.sort(np.concatenate([b, 0.5 * (b[1:] + b[:-1])]))))
+        r = fine.disc.newton(fine.disc.transfer(x, sysm.disc), fine.base, tol=1e-10)
+        assert r.converged
+        sysm, x = fine, r.x
+    ref = collocated_integral(sysm, x, sysm.base, edges)
+    assert j["side_force"][k] > 0.1 * j["side_force"].max()
+    assert j["side_force"][k] == pytest.approx(ref[k], rel=1e-3)
+    assert j["side_force"].sum() == pytest.approx(ref.sum(), rel=1e-4)
