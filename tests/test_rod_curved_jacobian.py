@@ -152,3 +152,17 @@ def test_a_load_without_tangents_sends_the_curved_rod_to_the_complex_step():
     curve = parse_reference("arc:0.6", 1.0)
     assert EulerianRod(RodParameters(), curve).problem.jacobian is not None
     assert EulerianRod(RodParameters(), curve, loads=[Weight(), _NoTangent()]).problem.jacobian is None
+
+
+def test_the_curved_jacobian_in_blocks_of_points_is_the_same_arrays(monkeypatch):
+    """Long rods are differentiated in blocks of points (bounded memory): the same values, bit for bit."""
+    import rodcont.rod as rod_module
+    rod, curve, wall = CASES["well"]()
+    model = EulerianRod(rod, curve, wall=wall)
+    S, z = _random_state(model, np.random.default_rng(9), 50, 0.06, 3e5)
+    p = model.params(0.2, T=1e5)
+    G, dG = model._jacobian_curved(S, z, p)
+    monkeypatch.setattr(rod_module, "JACOBIAN_BLOCK", 7)
+    Gb, dGb = model._jacobian_curved(S, z, p)
+    np.testing.assert_array_equal(G, Gb)
+    np.testing.assert_array_equal(dG, dGb)

@@ -130,7 +130,8 @@ class Wall:
 
     def pressure_slopes(self, D1, D2, P: float, S=None, pressure=None):
         """``(dp/dD1, dp/dD2)`` of :meth:`pressure` (exact): ``dp/dgamma = -p / sqrt(gamma^2 + 4)`` on both of
-        its forms, ``dgamma/dD_a = -D_a / (eps c^2)``. ``pressure``: :meth:`pressure` at these points, when known."""
+        its forms, ``dgamma/dD_a = -D_a / (eps c^2)`` (a subclass that changes :meth:`pressure` changes this too).
+        ``pressure``: :meth:`pressure` at these points, when known."""
         c = self._c(S)
         p = self.pressure(D1, D2, P, S) if pressure is None else pressure
         gamma = (c * c - (D1 * D1 + D2 * D2)) / (2.0 * c * self.eps * c)

@@ -79,7 +79,8 @@ class DistributedLoad:
     params: tuple = ()
     #: :meth:`force_tangent` and :meth:`moment_tangent` are exact, for loads that read only ``S, p, n, alpha,
     #: d3, deflection`` (and ``w``, ``cache``) of the kinematics: the model's analytic Jacobian uses them;
-    #: a rod with any load without them takes the complex step
+    #: a rod with any load without them takes the complex step (a subclass that changes ``force`` or ``moment``
+    #: must change their tangents too, or set this False)
     tangents = False
 
     def force_tangent(self, k: Kinematics, t: Tangents):
@@ -111,7 +112,6 @@ class Weight(DistributedLoad):
     (``w`` the parameter ``w``, so a trace in ``w`` moves it; ``g`` is ``RodParameters.weight_direction``)."""
 
     params = ("w",)
-
     tangents = True
 
     def force(self, k: Kinematics):
@@ -131,6 +131,7 @@ class WallContact(DistributedLoad):
     :meth:`rodcont.contact.Wall.scale`): a trace in ``w`` or ``EI`` keeps one contact law."""
 
     reads_deflection = True
+    tangents = True
 
     def __init__(self, wall, scale: float | None = None):
         from .contact import Wall
@@ -155,8 +156,6 @@ class WallContact(DistributedLoad):
     def force(self, k: Kinematics):
         D1, D2 = k.deflection
         return self.wall.force(D1, D2, self.scale, k.S, pressure=self.pressure(k))
-
-    tangents = True
 
     def pressure_tangent(self, k: Kinematics, t: Tangents):
         """Tangent of :meth:`pressure` along the seeds of ``t``, ``(seeds, npts)`` (cached on ``k`` as it is)."""
@@ -277,6 +276,7 @@ class Friction(DistributedLoad):
     """
 
     reads_deflection = True
+    tangents = True
 
     def __init__(self, mu, radius, operation: Operation | str = "static"):
         self.mu_table = _stations(mu, "the friction factor")
@@ -326,8 +326,6 @@ class Friction(DistributedLoad):
         if not np.any(turn):
             return None
         return -(turn * self._wall.pressure(k)) * k.d3
-
-    tangents = True
 
     def _along_d3_tangent(self, share, k: Kinematics, t: Tangents):
         """Tangent of ``share p d3``."""
