@@ -118,7 +118,7 @@ def start_frame(t0, K1=None) -> tuple[np.ndarray, np.ndarray]:
     return K1, np.cross(t0, K1)
 
 
-def frame_jets(k, D1, D2, twist: bool = True, base: float = 1.0):
+def frame_jets(k, D1, D2, twist: bool = True):
     """``r', r'', r'''`` of ``r = R + D1 K1 + D2 K2`` in frame components ``(v.K1, v.K2, v.K3)``.
 
     ``k``: ``(3, 3, npts)``, ``k[a, j]`` the ``j``-th derivative of ``k_{a+1}``;
@@ -134,14 +134,13 @@ def frame_jets(k, D1, D2, twist: bool = True, base: float = 1.0):
 
     Pure arithmetic: complex jets (the complex step) pass through. Written out
     in components (``Delta`` has no third component; ``twist=False`` drops
-    the ``k3`` terms, zero for a Bishop frame). ``base = 0`` drops ``e3`` from ``A0``: the map is then
-    linear in the jets (their tangents, for an exact Jacobian).
+    the ``k3`` terms, zero for a Bishop frame).
     """
     k1, k2 = k[0], k[1]
     a0, a1, a2, a3 = D1
     b0, b1, b2, b3 = D2
     # omega^(j) x Delta^(i) = (-k3^(j) D2^(i), k3^(j) D1^(i), -(k1^(j) D1^(i) + k2^(j) D2^(i)))
-    A0 = np.stack([a1, b1, base - (k1[0] * a0 + k2[0] * b0)])
+    A0 = np.stack([a1, b1, 1.0 - (k1[0] * a0 + k2[0] * b0)])
     A1 = np.stack([a2, b2, -(k1[1] * a0 + k2[1] * b0) - (k1[0] * a1 + k2[0] * b1)])
     A2 = np.stack([a3, b3, -(k1[2] * a0 + k2[2] * b0) - 2.0 * (k1[1] * a1 + k2[1] * b1) - (k1[0] * a2 + k2[0] * b2)])
     if twist:

@@ -164,6 +164,25 @@ def _tcross(dA, B):
     return _cross(dA.transpose(1, 0, 2), B[:, None]).transpose(1, 0, 2)
 
 
+def _frame_jet_tangents(k):
+    """Tangents of ``r', r'', r'''`` (:func:`rodcont.curves.frame_jets`: affine in the jets) along
+    the seeds ``Delta1^(j)``, then ``Delta2^(j)`` (``j = 0..3``), each ``(8, 3, npts)``, written out: ``A_m`` (the
+    derivative of the components of ``r'``, ``m`` times) is ``[Delta]^(m+1) + sum_i C(m, i) omega^(i) x Delta^(m-i)``,
+    with ``omega^(i) x e1 = (0, k3^(i), -k1^(i))`` and ``omega^(i) x e2 = (-k3^(i), 0, -k2^(i))``."""
+    k1, k2, k3 = k[0], k[1], k[2]
+    A = np.zeros((3, 8, 3, k.shape[-1]))
+    for s, unit, wx in ((0, 0, lambda i: ((1, k3[i]), (2, -k1[i]))), (4, 1, lambda i: ((0, -k3[i]), (2, -k2[i])))):
+        for m in range(3):
+            A[m, s + m + 1, unit] = 1.0
+            for i in range(m + 1):
+                coef = 2.0 if (m, i) == (2, 1) else 1.0
+                for comp, v in wx(i):
+                    A[m, s + m - i, comp] += coef * v
+    omega, omega1 = np.stack([-k2[0], k1[0], k3[0]]), np.stack([-k2[1], k1[1], k3[1]])
+    wA0 = -_tcross(A[0], omega)
+    return A[0], A[1] + wA0, A[2] - _tcross(A[0], omega1) - _tcross(2.0 * A[1] + wA0, omega)
+
+
 def _seeded_dot(*pairs):
     """``sum_j dr^(j) . X_j`` along the six seeds for pairs ``(j, X_j)`` (``dr^(j)`` is a unit vector on
     two seeds of its own: no products needed)."""
@@ -878,12 +897,9 @@ class EulerianRod:
     def _curved_geometry_tangents(q) -> SimpleNamespace:
         """Tangents of the geometric quantities of :meth:`_curved_state` along the seeds ``Delta1^(j)``
         (``j = 0..3``), then ``Delta2^(j)``: ``(8, npts)`` scalars, ``(8, 3, npts)`` vectors (``r^(j)`` is
-        affine in the seeds: its tangents are :func:`rodcont.curves.frame_jets` without ``e3``)."""
-        npts = q.n.shape[-1]
-        seeds = np.broadcast_to(np.eye(8)[:, :, None], (8, 8, npts))
-        dr1, dr2, dr3 = (v.transpose(1, 0, 2) for v in frame_jets(q.k[:, :, None], seeds[:4], seeds[4:],
-                                                                   q.turning, base=0.0))
-        n, n2, n3, c, d3, d3p, d3pp = q.n, q.n2, q.n3, q.c, q.d3, q.d3p, q.d3pp
+        affine in the seeds: its tangents are :func:`_frame_jet_tangents`)."""
+        dr1, dr2, dr3 = _frame_jet_tangents(q.k)
+        n, n2, n3, c, d3, d3p = q.n, q.n2, q.n3, q.c, q.d3, q.d3p
         r1, r2, r3, F, EA = q.r1, q.r2, q.r3, q.F, q.EA
         dn = _tdot(dr1, d3)
         dd3 = (dr1 - d3 * dn[:, None]) / n
