@@ -36,8 +36,10 @@ keeps its own, cheaper residual.
 
 Loads and ends. The distributed loads (the weight ``f = w g``, the wall's
 force, any other) are objects (:mod:`rodcont.loads`), each added once to both
-residuals from the kinematics they are handed; the hand-derived Jacobian covers
-the straight rod under its weight alone, every other case takes the complex
+residuals from the kinematics they are handed; hand-derived Jacobians cover
+the straight rod under its weight alone (:meth:`EulerianRod.jacobian`) and a
+moving frame under loads with exact tangents (weight, wall, friction:
+:meth:`EulerianRod._jacobian_curved`); every other case takes the complex
 step. The boundary conditions are assembled from end-condition objects
 (:mod:`rodcont.ends`: clamp, rotation or torque, tension or unstressed length). The end twist condition becomes
 ``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
