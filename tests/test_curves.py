@@ -623,6 +623,13 @@ def _count_curve_evaluations(monkeypatch, curve):
     return calls
 
 
+def _complex_step_only(problem):
+    """The problem without its hand-derived Jacobian: the complex step's batches (tiled blocks of points) are
+    what these cache tests exercise (a load without tangents takes that path)."""
+    import dataclasses
+    return dataclasses.replace(problem, jacobian=None)
+
+
 def test_curve_data_cache_does_not_thrash_with_many_grids(monkeypatch):
     """The curve data of every grid one Newton iteration and one step's outputs read stay cached. The complex
     step evaluates the residual in blocks of POINT_BLOCK points, one grid per block: above ~4500 subintervals
@@ -633,6 +640,7 @@ def test_curve_data_cache_does_not_thrash_with_many_grids(monkeypatch):
     monkeypatch.setattr(col, "POINT_BLOCK", 8)
     curve = parse_reference("bump:0.05,0.3", 1.0)
     model = EulerianRod(PAPER, curve, Wall(0.02, eps=1e-3))
+    model.problem = _complex_step_only(model.problem)
     disc = model.discretise(60)
     outputs = model.output_evaluator(disc)
     x = model.initial_guess(disc, 10.0)
@@ -654,6 +662,7 @@ def test_curve_data_cache_memory_is_bounded(monkeypatch):
     monkeypatch.setattr(col, "POINT_BLOCK", 16)
     curve = parse_reference("arc:1", 1.0)
     model = EulerianRod(PAPER, curve)
+    model.problem = _complex_step_only(model.problem)
     disc = model.discretise(40)
     x = model.initial_guess(disc, 10.0) + 1e-3 * np.random.default_rng(2).standard_normal(disc.size)
     p = model.params(1.0, T=10.0)
@@ -662,6 +671,7 @@ def test_curve_data_cache_memory_is_bounded(monkeypatch):
     # and the key (1 double a point)
     assert len(model._curve_cache) == 13 and model._curve_cache_size == disc.npts * 13 * 8
     small = EulerianRod(PAPER, curve)
+    small.problem = _complex_step_only(small.problem)
     small.curve_cache_bytes = 7_000  # about a third of what one evaluation reads
     disc = small.discretise(40)
     calls = _count_curve_evaluations(monkeypatch, curve)

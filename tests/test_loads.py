@@ -104,12 +104,16 @@ def test_a_new_load_has_an_exact_jacobian_from_the_complex_step():
 
 
 def test_the_weight_alone_on_the_straight_rod_keeps_the_hand_derived_jacobian():
-    """The performance path: weight only, straight reference (with any end conditions)."""
+    """The performance paths: weight only on the straight reference (with any end conditions), and a moving
+    frame whose loads all have tangents (tests/test_rod_curved_jacobian.py); a straight rod in a wall and a
+    load without tangents take the complex step."""
     assert EulerianRod().problem.jacobian is not None
     assert EulerianRod(ends=RodEnds(end=(Clamp(), Torque(1.0), Tension()))).problem.jacobian is not None
     from rodcont.contact import Wall
     assert EulerianRod(wall=Wall(0.01)).problem.jacobian is None
-    assert EulerianRod(curve=parse_reference("arc:0.6", 1.0)).problem.jacobian is None
+    assert EulerianRod(curve=parse_reference("arc:0.6", 1.0)).problem.jacobian is not None
+    assert EulerianRod(curve=parse_reference("arc:0.6", 1.0),
+                       loads=[Weight(), UniformMoment(0.5)]).problem.jacobian is None
 
 
 def test_loads_and_ends_are_checked():

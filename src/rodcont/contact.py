@@ -128,6 +128,16 @@ class Wall:
         # the two forms of the same root of p^2/k + g p - mu = 0, each free of cancellation on its side
         return np.where(np.real(gamma) > 0, (2.0 * P) / (root + gamma), 0.5 * P * (root - gamma))
 
+    def pressure_slopes(self, D1, D2, P: float, S=None, pressure=None):
+        """``(dp/dD1, dp/dD2)`` of :meth:`pressure` (exact): ``dp/dgamma = -p / sqrt(gamma^2 + 4)`` on both of
+        its forms, ``dgamma/dD_a = -D_a / (eps c^2)`` (a subclass that changes :meth:`pressure` changes this too).
+        ``pressure``: :meth:`pressure` at these points, when known."""
+        c = self._c(S)
+        p = self.pressure(D1, D2, P, S) if pressure is None else pressure
+        gamma = (c * c - (D1 * D1 + D2 * D2)) / (2.0 * c * self.eps * c)
+        s = p / (np.sqrt(gamma * gamma + 4.0) * (c * self.eps * c))
+        return s * D1, s * D2
+
     def force(self, D1, D2, P: float, S=None, pressure=None):
         """The wall's force per unit ``S`` on the rod, components on ``K1, K2, K3``: ``q = -p Delta / c``
         across, and, where the clearance varies, ``p c'(S) |Delta|^2 / c^2`` along the axis (the wall of a

@@ -58,6 +58,18 @@ class Kinematics:
     w: object = None
 
 
+@dataclass
+class Tangents:
+    """Tangents of the :class:`Kinematics` along seeds (axis 0, the model's choice of jet directions):
+    ``n``, ``alpha`` ``(seeds, npts)``, ``d3`` ``(seeds, 3, npts)``, ``deflection`` the tangents of
+    ``(Delta1, Delta2)``, each ``(seeds, npts)`` (or broadcasting to it)."""
+
+    n: np.ndarray
+    alpha: np.ndarray
+    d3: np.ndarray
+    deflection: tuple
+
+
 class DistributedLoad:
     """A load per unit reference length ``S`` (module docstring). Subclasses override what they contribute."""
 
@@ -65,6 +77,19 @@ class DistributedLoad:
     reads_deflection = False
     #: names of the parameters it reads (entries of ``model.param_names``)
     params: tuple = ()
+    #: :meth:`force_tangent` and :meth:`moment_tangent` are exact, for loads that read only ``S, p, n, alpha,
+    #: d3, deflection`` (and ``w``, ``cache``) of the kinematics: the model's analytic Jacobian uses them;
+    #: a rod with any load without them takes the complex step (a subclass that changes ``force`` or ``moment``
+    #: must change their tangents too, or set this False)
+    tangents = False
+
+    def force_tangent(self, k: Kinematics, t: Tangents):
+        """Tangent of :meth:`force` along the seeds of ``t``, ``(seeds, 3, npts)``, or None where it is None."""
+        return None
+
+    def moment_tangent(self, k: Kinematics, t: Tangents):
+        """Tangent of :meth:`moment` along the seeds of ``t``, ``(seeds, 3, npts)``, or None where it is None."""
+        return None
 
     def force(self, k: Kinematics):
         """Force per unit ``S`` on ``K1, K2, K3`` (``(3, npts)``, or three rows; a row may be a scalar), or None."""
@@ -87,9 +112,14 @@ class Weight(DistributedLoad):
     (``w`` the parameter ``w``, so a trace in ``w`` moves it; ``g`` is ``RodParameters.weight_direction``)."""
 
     params = ("w",)
+    tangents = True
 
     def force(self, k: Kinematics):
         return ((k.p[2] if k.w is None else k.w) * k.n / k.alpha) * k.gK
+
+    def force_tangent(self, k: Kinematics, t: Tangents):
+        w = k.p[2] if k.w is None else k.w
+        return ((w / k.alpha) * (t.n - (k.n / k.alpha) * t.alpha))[:, None] * k.gK
 
     def __repr__(self):
         return "Weight()"
@@ -101,6 +131,7 @@ class WallContact(DistributedLoad):
     :meth:`rodcont.contact.Wall.scale`): a trace in ``w`` or ``EI`` keeps one contact law."""
 
     reads_deflection = True
+    tangents = True
 
     def __init__(self, wall, scale: float | None = None):
         from .contact import Wall
@@ -125,6 +156,30 @@ class WallContact(DistributedLoad):
     def force(self, k: Kinematics):
         D1, D2 = k.deflection
         return self.wall.force(D1, D2, self.scale, k.S, pressure=self.pressure(k))
+
+    def pressure_tangent(self, k: Kinematics, t: Tangents):
+        """Tangent of :meth:`pressure` along the seeds of ``t``, ``(seeds, npts)`` (cached on ``k`` as it is)."""
+        key = (id(self), "tangent")
+        got = k.cache.get(key)
+        if got is None:
+            D1, D2 = k.deflection
+            s1, s2 = self.wall.pressure_slopes(D1, D2, self.scale, k.S, pressure=self.pressure(k))
+            got = k.cache[key] = s1 * t.deflection[0] + s2 * t.deflection[1]
+        return got
+
+    def force_tangent(self, k: Kinematics, t: Tangents):
+        """Of ``q = -p Delta / c`` across and ``p c' |Delta|^2 / c^2`` along (:meth:`rodcont.contact.Wall.force`)."""
+        D1, D2 = k.deflection
+        dD1, dD2 = t.deflection
+        p, dp = self.pressure(k), self.pressure_tangent(k, t)
+        c = self.wall._c(k.S)
+        out = np.zeros((dp.shape[0], 3, dp.shape[-1]))
+        out[:, 0] = -(dp * D1 + p * dD1) / c
+        out[:, 1] = -(dp * D2 + p * dD2) / c
+        if self.wall.varying:
+            r2 = D1 * D1 + D2 * D2
+            out[:, 2] = (self.wall.slope_at(k.S) / (c * c)) * (dp * r2 + 2.0 * p * (D1 * dD1 + D2 * dD2))
+        return out
 
     def stations(self, a: float, b: float) -> list:
         if not self.wall.varying:
@@ -221,6 +276,7 @@ class Friction(DistributedLoad):
     """
 
     reads_deflection = True
+    tangents = True
 
     def __init__(self, mu, radius, operation: Operation | str = "static"):
         self.mu_table = _stations(mu, "the friction factor")
@@ -270,6 +326,19 @@ class Friction(DistributedLoad):
         if not np.any(turn):
             return None
         return -(turn * self._wall.pressure(k)) * k.d3
+
+    def _along_d3_tangent(self, share, k: Kinematics, t: Tangents):
+        """Tangent of ``share p d3``."""
+        dp = self._wall.pressure_tangent(k, t)
+        return share * (dp[:, None] * k.d3 + self._wall.pressure(k) * t.d3)
+
+    def force_tangent(self, k: Kinematics, t: Tangents):
+        axial, _ = self.shares(k.S)
+        return self._along_d3_tangent(axial, k, t) if np.any(axial) else None
+
+    def moment_tangent(self, k: Kinematics, t: Tangents):
+        _, turn = self.shares(k.S)
+        return self._along_d3_tangent(-turn, k, t) if np.any(turn) else None
 
     def stations(self, a: float, b: float) -> list:
         return [float(S) for S in np.concatenate([self.mu_table[0], self.r_table[0]]) if a < S < b]

@@ -36,8 +36,10 @@ keeps its own, cheaper residual.
 
 Loads and ends. The distributed loads (the weight ``f = w g``, the wall's
 force, any other) are objects (:mod:`rodcont.loads`), each added once to both
-residuals from the kinematics they are handed; the hand-derived Jacobian covers
-the straight rod under its weight alone, every other case takes the complex
+residuals from the kinematics they are handed; hand-derived Jacobians cover
+the straight rod under its weight alone (:meth:`EulerianRod.jacobian`) and a
+moving frame under loads with exact tangents (weight, wall, friction:
+:meth:`EulerianRod._jacobian_curved`); every other case takes the complex
 step. The boundary conditions are assembled from end-condition objects
 (:mod:`rodcont.ends`: clamp, rotation or torque, tension or unstressed length). The end twist condition becomes
 ``phi(end) = phi_L - beta`` with ``beta`` the turn of the curve's frame
@@ -54,13 +56,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
 from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .curves import ReferenceCurve, Straight, StraightReference, _cross, _dot, frame_jets, minimal_rotation  # noqa: F401
-from .loads import Kinematics
+from .loads import Kinematics, Tangents
 
 PARAMS = ("phi_L", "T", "w", "EI", "GJ", "EA")
 FIELDS = ("Delta1", "Delta2", "phi", "F.K1", "F.K2", "F.K3")
@@ -68,6 +71,11 @@ ORDERS = (3, 3, 2, 1, 1, 1)
 # a join (a station where the reference's curvature jumps) leaves every field only C^0: the coefficients
 # it adds, one per interface condition (Delta1, Delta2: 2 each; phi: 1)
 UNKNOWNS_PER_JOIN = sum(m - 1 for m in ORDERS)
+
+
+#: points per call of the curved Jacobian's kernel: its temporaries peak at about 4.3 kB a point (smaller blocks
+#: cost more calls: 1024 took 35 ms at 10 000 points where 4096 took 31 and one call 28)
+JACOBIAN_BLOCK = 4096
 
 
 _JET_START = {f: int(sum(m + 1 for m in ORDERS[:i])) for i, f in enumerate(FIELDS)}
@@ -151,6 +159,30 @@ def _equations(EF, EM, torque):
 def _tdot(dA, B):
     # one einsum instead of five operations (the same sum, in the same order)
     return np.einsum("sin,in->sn", dA, B)
+
+
+def _tcross(dA, B):
+    """``dA x B`` along the seeds: ``dA`` ``(seeds, 3, npts)``, ``B`` ``(3, npts)``."""
+    return _cross(dA.transpose(1, 0, 2), B[:, None]).transpose(1, 0, 2)
+
+
+def _frame_jet_tangents(k):
+    """Tangents of ``r', r'', r'''`` (:func:`rodcont.curves.frame_jets`: affine in the jets) along
+    the seeds ``Delta1^(j)``, then ``Delta2^(j)`` (``j = 0..3``), each ``(8, 3, npts)``, written out: ``A_m`` (the
+    derivative of the components of ``r'``, ``m`` times) is ``[Delta]^(m+1) + sum_i C(m, i) omega^(i) x Delta^(m-i)``,
+    with ``omega^(i) x e1 = (0, k3^(i), -k1^(i))`` and ``omega^(i) x e2 = (-k3^(i), 0, -k2^(i))``."""
+    k1, k2, k3 = k[0], k[1], k[2]
+    A = np.zeros((3, 8, 3, k.shape[-1]))
+    for s, unit, wx in ((0, 0, lambda i: ((1, k3[i]), (2, -k1[i]))), (4, 1, lambda i: ((0, -k3[i]), (2, -k2[i])))):
+        for m in range(3):
+            A[m, s + m + 1, unit] = 1.0
+            for i in range(m + 1):
+                coef = 2.0 if (m, i) == (2, 1) else 1.0
+                for comp, v in wx(i):
+                    A[m, s + m - i, comp] += coef * v
+    omega, omega1 = np.stack([-k2[0], k1[0], k3[0]]), np.stack([-k2[1], k1[1], k3[1]])
+    wA0 = -_tcross(A[0], omega)
+    return A[0], A[1] + wA0, A[2] - _tcross(A[0], omega1) - _tcross(2.0 * A[1] + wA0, omega)
 
 
 def _seeded_dot(*pairs):
@@ -429,10 +461,13 @@ class EulerianRod:
         boundary conditions and the hand-derived Jacobian precompute."""
         from .loads import Weight
         used = {"EI", "GJ", "EA"}.union(*(load.params for load in self.loads))
-        # the hand-derived derivatives cover the straight rod under its weight alone; every other case takes
-        # the complex step of its residual
+        # the hand-derived derivatives cover the straight rod under its weight alone and the moving frame under
+        # loads with exact tangents; every other case takes the complex step of its residual
         self.weight_only = self.constant_frame and [type(load) for load in self.loads] == [Weight] \
             and self.sections is None
+        # a moving frame whose loads all have exact tangents: the hand-derived curved Jacobian
+        curved = not self.constant_frame and all(load.tangents for load in self.loads)
+        jacobian = self.jacobian if self.weight_only else self._jacobian_curved if curved else None
         integrals = {}
         if self.ends.has_integrals:
             extra = [Jet.D1[0], Jet.D2[0]] if any(getattr(c, "integral_jets", "") == "deflection"
@@ -443,7 +478,7 @@ class EulerianRod:
                                  free=[self.param_names.index(q) for q in self.ends.frees],
                                  jet_dependence=dependence,
                                  residual_params=[i for i, q in enumerate(self.param_names) if q in used],
-                                 jacobian=self.jacobian if self.weight_only else None,
+                                 jacobian=jacobian,
                                  affine_bc=self.ends.affine,
                                  joins=self.joins, join_continuity=(0,) * len(FIELDS) if self.joins.size else None,
                                  interface=self.interface if self.joins.size else None, **integrals)
@@ -460,7 +495,8 @@ class EulerianRod:
         if self.problem.jacobian is not None:
             # columns of dG that jacobian fills by blocks, as slices (writes through views, no fancy indexing)
             pos = self._jet_pos
-            self._dG_cols = (_evenly(pos[list(_SEED_JETS)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
+            seeds = _SEED_JETS if self.weight_only else Jet.D1 + Jet.D2
+            self._dG_cols = (_evenly(pos[list(seeds)]), _evenly(pos[Jet.F]), _evenly(pos[Jet.FP]))
 
     # ---- sections: piecewise-constant stiffness and weight ----------------------------
     def _stiffness(self, S, p):
@@ -781,8 +817,15 @@ class EulerianRod:
         The moment equations are still projected on ``K1, K2`` (the first two
         local components).
         """
+        q = self._curved_state(S, z, p)
+        EF, EM, torque = self._add_loads(self._curved_kinematics(q), q.Ft, q.EM, q.mp)
+        return _equations(EF, EM, torque / q.GJ)
+
+    def _curved_state(self, S, z, p) -> SimpleNamespace:
+        """Every quantity of :meth:`_residual_curved` before the loads, by name (its Jacobian reads them too)."""
         w, EI, GJ, EA = self._stiffness(S, p)
-        (r1, r2, r3), k, gK = self._curved_jets(S, z)
+        k, gK, turning = self._curve_data(S)
+        r1, r2, r3 = frame_jets(k, z[list(Jet.D1)], z[list(Jet.D2)], turning)
         F = z[Jet.F]
         Fp = z[Jet.FP]
         phi1, phi2 = z[Jet.PHI[1]], z[Jet.PHI[2]]
@@ -793,7 +836,8 @@ class EulerianRod:
         alpha = 1.0 + _dot(F, d3) / EA
         alphap = (_dot(Ft, d3) + _dot(F, d3p)) / EA
         bend = _cross(r1, r2)
-        uperp_p = ((alphap * bend + alpha * _cross(r1, r3)) - (3.0 * alpha * c / n2) * bend) / n3
+        r13 = _cross(r1, r3)
+        uperp_p = ((alphap * bend + alpha * r13) - (3.0 * alpha * c / n2) * bend) / n3
         J1 = alpha / n
         J1p = alphap / n - alpha * c / n3
         # the moving pole p = K3 = (0, 0, 1) in its own frame; p x v = (-v1, v0, 0)
@@ -811,9 +855,160 @@ class EulerianRod:
         m = GJ * J1 * twist
         mp = GJ * (J1p * twist + J1 * (phi2 + taup))
         EM = EI * uperp_p[:2] + m * d3p[:2] + mp * d3[:2] + _cross2(r1, F)
-        EF, EM, torque = self._add_loads(Kinematics(S, z, p, n, alpha, d3, gK, _deflection(z),
-                                                    **self._local_weight(w)), Ft, EM, mp)
-        return _equations(EF, EM, torque / GJ)
+        return SimpleNamespace(**locals())  # every name above (the Jacobian's chain rule reads most of them)
+
+    def _curved_kinematics(self, q) -> Kinematics:
+        return Kinematics(q.S, q.z, q.p, q.n, q.alpha, q.d3, q.gK, _deflection(q.z), **self._local_weight(q.w))
+
+    def _jacobian_curved(self, S, z, p):
+        """The moving-frame residual and its exact derivatives w.r.t. the jet (:meth:`jacobian`'s contract), by
+        hand: the geometry carries tangents along the eight seeds ``Delta1^(j), Delta2^(j)`` (``j = 0..3``,
+        :meth:`_curved_geometry_tangents`), the force and the twist enter linearly (or bilinearly) and are
+        differentiated in closed form (:meth:`_curved_linear_columns`), the loads by their own tangents along
+        the geometric seeds and ``F`` (:meth:`_curved_load_tangents`). Checked against the complex step of
+        :meth:`residual` in ``tests/test_rod_curved_jacobian.py``."""
+        if S.size > JACOBIAN_BLOCK:  # bounds the tangents' memory
+            parts = [self._jacobian_curved(S[i:i + JACOBIAN_BLOCK], z[:, i:i + JACOBIAN_BLOCK], p)
+                     for i in range(0, S.size, JACOBIAN_BLOCK)]
+            return np.concatenate([g for g, _ in parts], axis=1), np.concatenate([d for _, d in parts], axis=2)
+        q = self._curved_state(S, z, p)
+        kin = self._curved_kinematics(q)
+        EF, EM, torque = self._add_loads(kin, q.Ft, q.EM, q.mp)
+        G = _equations(EF, EM, torque / q.GJ)
+        t = self._curved_geometry_tangents(q)
+        geo_cols, jF, jFp = self._dG_cols
+        out = np.zeros((6, self._active.size, q.n.shape[-1]))
+        geo = out[:, geo_cols]  # (equation, seed, point): a view
+        geo[3:5] = (q.EI * t.duperp[:, :2] + t.dm[:, None] * q.d3p[:2] + q.m * t.dd3p[:, :2]
+                    + t.dmp[:, None] * q.d3[:2] + q.mp * t.dd3[:, :2] + _tcross(t.dr1, q.F)[:, :2]).transpose(1, 0, 2)
+        geo[5] = t.dmp
+        self._curved_linear_columns(q, out)
+        dEF, dEM, dtq = self._curved_load_tangents(q, kin, t)
+        if dEF is not None:
+            geo[:3] += dEF[:8].transpose(1, 0, 2)
+            out[:3, jF] += dEF[8:].transpose(1, 0, 2)
+        if dEM is not None:
+            geo[3:5] += dEM[:8, :2].transpose(1, 0, 2)
+            out[3:5, jF] += dEM[8:, :2].transpose(1, 0, 2)
+            geo[5] += dtq[:8]
+            out[5, jF] += dtq[8:]
+        out[5] /= q.GJ
+        return G, out
+
+    @staticmethod
+    def _curved_geometry_tangents(q) -> SimpleNamespace:
+        """Tangents of the geometric quantities of :meth:`_curved_state` along the seeds ``Delta1^(j)``
+        (``j = 0..3``), then ``Delta2^(j)``: ``(8, npts)`` scalars, ``(8, 3, npts)`` vectors (``r^(j)`` is
+        affine in the seeds: its tangents are :func:`_frame_jet_tangents`)."""
+        dr1, dr2, dr3 = _frame_jet_tangents(q.k)
+        n, n2, n3, c, d3, d3p = q.n, q.n2, q.n3, q.c, q.d3, q.d3p
+        r1, r2, r3, F, EA = q.r1, q.r2, q.r3, q.F, q.EA
+        dn = _tdot(dr1, d3)
+        dd3 = (dr1 - d3 * dn[:, None]) / n
+        dc = _tdot(dr1, r2) + _tdot(dr2, r1)
+        d3r2 = _dot(d3, r2)
+        dd3r2 = _tdot(dd3, r2) + _tdot(dr2, d3)
+        e = r2 - d3 * d3r2
+        de = dr2 - dd3 * d3r2 - d3 * dd3r2[:, None]
+        dd3p = (de - d3p * dn[:, None]) / n
+        dn3 = 3.0 * n2 * dn
+        t1 = _dot(d3p, r2) + _dot(d3, r3)
+        dt1 = _tdot(dd3p, r2) + _tdot(dr2, d3p) + _tdot(dd3, r3) + _tdot(dr3, d3)
+        qv = r3 - d3p * d3r2 - d3 * t1
+        dq = dr3 - dd3p * d3r2 - d3p * dd3r2[:, None] - dd3 * t1 - d3 * dt1[:, None]
+        dd3pp = (dq - (qv / n) * dn[:, None]) / n - (de * c + e * dc[:, None] - (e * (c / n3)) * dn3[:, None]) / n3
+        dbend = _tcross(dr1, r2) - _tcross(dr2, r1)
+        dr13 = _tcross(dr1, r3) - _tcross(dr3, r1)
+        dalpha = _tdot(dd3, F) / EA
+        dalphap = (_tdot(dd3, q.Ft) + _tdot(dd3p, F)) / EA
+        K = c / n2
+        dK = dc / n2 - (c / n2**2) * (2.0 * n * dn)
+        W = q.r13 - 3.0 * K * q.bend
+        dW = dr13 - 3.0 * (dK[:, None] * q.bend + K * dbend)
+        duperp = (dalphap[:, None] * q.bend + q.alphap * dbend + dalpha[:, None] * W + q.alpha * dW
+                  - q.uperp_p * dn3[:, None]) / n3
+        dJ1 = dalpha / n - (q.alpha / n2) * dn
+        dJ1p = (dalphap / n - (q.alphap / n2) * dn - (dalpha * c + q.alpha * dc) / n3
+                + (q.alpha * c / n3**2) * dn3)
+        dtau, dtaup = EulerianRod._pole_tangents(q, dd3, dd3p, dd3pp)
+        ptw = q.phi2 + q.taup
+        dm = q.GJ * (dJ1 * q.twist + q.J1 * dtau)
+        dmp = q.GJ * (dJ1p * q.twist + q.J1p * dtau + dJ1 * ptw + q.J1 * dtaup)
+        return SimpleNamespace(dr1=dr1, dn=dn, dd3=dd3, dd3p=dd3p, dalpha=dalpha, duperp=duperp, dm=dm, dmp=dmp,
+                               W=W)
+
+    @staticmethod
+    def _pole_tangents(q, dd3, dd3p, dd3pp):
+        """Tangents of ``tau_q`` and ``tau_q'`` (the moving pole's terms) from those of ``d3, d3', d3''``."""
+        k1, k2, d3, d3p, d3pp, pd, N = q.k1, q.k2, q.d3, q.d3p, q.d3pp, q.pd, q.N
+        dpd = dd3[:, 2]
+        ddxd = _tcross(dd3, d3p) - _tcross(dd3p, d3)
+        dN = k1 * dd3[:, 1] - k2 * dd3[:, 0] - ddxd[:, 2]
+        dNp = ((k1 * dd3p[:, 1] - k2 * dd3p[:, 0]) + (q.P20 * dd3[:, 1] - q.P21 * dd3[:, 0])
+               - (k1 * ddxd[:, 0] + k2 * ddxd[:, 1])
+               - (dd3[:, 0] * d3pp[1] + d3[0] * dd3pp[:, 1] - dd3[:, 1] * d3pp[0] - d3[1] * dd3pp[:, 0]))
+        dpdp = k1 * dd3[:, 0] + k2 * dd3[:, 1] + dd3p[:, 2]
+        dtau = dN / pd - (N / pd**2) * dpd
+        dtaup = (dNp / pd - (q.Np / pd**2) * dpd - (dN * q.pdp + N * dpdp) / pd**2
+                 + (2.0 * N * q.pdp / pd**3) * dpd)
+        return dtau, dtaup
+
+    def _curved_linear_columns(self, q, out) -> None:
+        """The columns of ``phi', phi''``, ``F`` and ``[F]'`` of :meth:`_jacobian_curved` (torque row times GJ)."""
+        pos = self._jet_pos
+        _, jF, jFp = self._dG_cols
+        GJ, EA, EI, n, n3, c, d3, d3p = q.GJ, q.EA, q.EI, q.n, q.n3, q.c, q.d3, q.d3p
+        ptw = q.phi2 + q.taup
+        out[3:5, pos[Jet.PHI[1]]] = GJ * (q.J1 * d3p[:2] + q.J1p * d3[:2])
+        out[5, pos[Jet.PHI[1]]] = GJ * q.J1p
+        out[3:5, pos[Jet.PHI[2]]] = GJ * q.J1 * d3[:2]
+        out[5, pos[Jet.PHI[2]]] = GJ * q.J1
+        # F enters alpha (d3 / EA) and alpha' ((d3' + d3 x omega) / EA: F' = [F]' + omega x F)
+        omega = np.stack([-q.k2, q.k1, q.k3])
+        aF = d3 / EA
+        apF = (d3p + _cross(d3, omega)) / EA
+        W = q.r13 - 3.0 * (c / q.n2) * q.bend
+        J1F = aF / n
+        J1pF = apF / n - aF * (c / n3)
+        mF = GJ * J1F * q.twist
+        mpF = GJ * (J1pF * q.twist + J1F * ptw)
+        out[3:5, jF] = (EI * (apF[:, None] * q.bend[:2] + aF[:, None] * W[:2]) / n3
+                        + mF[:, None] * d3p[:2] + mpF[:, None] * d3[:2]).transpose(1, 0, 2)
+        out[5, jF] = mpF
+        mpFp = GJ * J1F * q.twist
+        out[3:5, jFp] = (EI * aF[:, None] * q.bend[:2] / n3 + mpFp[:, None] * d3[:2]).transpose(1, 0, 2)
+        out[5, jFp] = mpFp
+        # the force balance: F' = [F]' + omega x F; the moment: r' x F (first two components)
+        jF, r1 = pos[Jet.F], q.r1
+        out[[0, 1, 2], pos[Jet.FP]] = 1.0
+        out[0, jF[1]], out[0, jF[2]] = -q.k3, q.k1
+        out[1, jF[0]], out[1, jF[2]] = q.k3, q.k2
+        out[2, jF[0]], out[2, jF[1]] = -q.k1, -q.k2
+        out[3, jF[1]] -= r1[2]
+        out[3, jF[2]] += r1[1]
+        out[4, jF[0]] += r1[2]
+        out[4, jF[2]] -= r1[0]
+
+    def _curved_load_tangents(self, q, kin, t):
+        """The loads' tangents along the eight geometric seeds, then ``F.K1, F.K2, F.K3``: force ``(11, 3, npts)``,
+        moment on ``K1, K2`` and its ``d3`` part (``(11, 3, npts)``, ``(11, npts)``); None where no load has one."""
+        npts = q.n.shape[-1]
+        zero = np.zeros((3, npts))
+        seeds = np.zeros((11, 1))
+        dD1, dD2 = seeds.copy(), seeds.copy()
+        dD1[0], dD2[4] = 1.0, 1.0
+        lt = Tangents(n=np.concatenate([t.dn, zero]), alpha=np.concatenate([t.dalpha, q.d3 / q.EA]),
+                      d3=np.concatenate([t.dd3, np.zeros((3, 3, npts))]), deflection=(dD1, dD2))
+        dEF = dEM = dtq = None
+        for load in self.loads:
+            df = load.force_tangent(kin, lt)
+            if df is not None:
+                dEF = df if dEF is None else dEF + df
+            dl = load.moment_tangent(kin, lt)
+            if dl is not None:
+                dq = _tdot(dl, q.d3) + _tdot(lt.d3, load.moment(kin))
+                dEM, dtq = (dl, dq) if dEM is None else (dEM + dl, dtq + dq)
+        return dEF, dEM, dtq
 
     def _axial_curved(self, S, z, p):
         """:meth:`_axial_quantities` with a moving frame."""
