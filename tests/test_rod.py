@@ -247,6 +247,23 @@ def _unstressed_arclength(eq, S):
     return quad(ds, 0, S, epsabs=1e-13, epsrel=1e-13, limit=200)[0] if S > 0 else 0.0
 
 
+def test_helical_waves_of_a_planar_shape_in_any_plane_do_not_follow_rounding():
+    """A planar shape with its slope through zero eight times, in the plane at 45 degrees (the 1 km well's):
+    0 waves however rounding tilts it (np.unwrap took each crossing as +-pi and counted 1 in 4 of 10)."""
+    S = np.linspace(0, 1, 2001)
+    shape = -0.005 * np.sin(np.pi * S) ** 2 * (1 + 0.9 * np.cos(6 * np.pi * S))
+    slope = np.gradient(shape, S)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        d1, d2 = (slope * (1 + 1e-12 * rng.standard_normal(S.size)) for _ in range(2))
+        assert helical_waves(S, shape, shape, d1, d2) == 0
+    # a helix in that plane's frame still counts its turn
+    env = np.sin(np.pi * S) ** 2
+    D1 = shape + 0.02 * env * np.cos(2 * np.pi * S)
+    D2 = shape + 0.02 * env * np.sin(2 * np.pi * S)
+    assert helical_waves(S, D1, D2, np.gradient(D1, S), np.gradient(D2, S)) == 1
+
+
 def test_helical_waves_counts_turns_of_the_slope():
     """A helix of n turns about a (slightly sagging) axis counts n; the planar sag counts 0."""
     S = np.linspace(0, 1, 2001)

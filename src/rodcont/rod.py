@@ -1443,5 +1443,11 @@ def helical_waves(S, D1, D2, D1p, D2p) -> int:
     keep = mag > 1e-3 * max(float(mag.max()), 1e-300)
     if keep.sum() < 2 or mag.max() < 1e-12:
         return 0
-    ang = np.unwrap(np.arctan2(D2p[keep], D1p[keep]))
-    return int(np.floor(abs(ang[-1] - ang[0]) / (2 * np.pi) + 0.25))
+    u, v = D1p[keep], D2p[keep]
+    cross = u[:-1] * v[1:] - v[:-1] * u[1:]
+    dot = u[:-1] * u[1:] + v[:-1] * v[1:]
+    # a slope through zero along a line turns it by +-pi as rounding decides: no turn
+    # (test_helical_waves_of_a_planar_shape_in_any_plane_do_not_follow_rounding)
+    through_zero = (dot < 0) & (np.abs(cross) <= 1e-8 * np.hypot(u[:-1], v[:-1]) * np.hypot(u[1:], v[1:]))
+    turned = np.sum(np.where(through_zero, 0.0, np.arctan2(cross, dot)))
+    return int(np.floor(abs(turned) / (2 * np.pi) + 0.25))
