@@ -130,11 +130,6 @@ def _is_number(v) -> bool:
 #: NEAR = 1e-3 gave tangents to 1.6e-8 for about one more residual per step.
 NEAR = 0.1
 
-#: After a Newton step of the corrector, chord steps on its factorisation go on while each is at most this
-#: fraction of the one before (Newton's own contraction after a large first step is about 0.02-0.05 on the
-#: Gamma = 1 branch past stretch 0.4, where the corrector took 3-5 factorisations a step).
-CHORD_RATE = 0.25
-
 
 @dataclass
 class ContinuationSettings:
@@ -396,7 +391,8 @@ class EventDetector(Detector):
             return []  # the first step from a start on the event, heading in (check_start)
         if not g0 * g1 < 0:
             return []
-        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind, end=new)
+        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind,
+                           end=new)
         status = ev.status if ev.action in (Action.STOP, Action.SEGMENT) else None
         if f is not None:
             f.message = ev.name
@@ -731,30 +727,8 @@ class Tracker:
                 return pt, info
             y = y + dy
             prev = size
-            # before the next factorisation, chord steps on this one (a residual and a solve each): the
-            # factorisation that gives the tangent is then the next one, not one more after it
-            y, prev, chords = self._chord_on(lu, y, base, ds, prev, accept)
-            iterations += chords
-            info["chord_after_newton"] = info.get("chord_after_newton", 0) + chords
         self.newton_iterations += iterations
         return None, "the corrector did not converge"
-
-    def _chord_on(self, lu, y, base: Point, ds: float, prev: float, accept: float):
-        """Chord steps with the factorisation of a Newton step just taken (``prev``: its size), while each
-        is at most ``CHORD_RATE`` of the one before, until one is below ``accept``; ``(y, last size, steps)``.
-        A step that contracts less is not taken: the next Newton step starts from the last good point."""
-        steps = 0
-        while True:
-            r = self._augmented_residual(y, base, ds)
-            if not np.all(np.isfinite(r)):
-                return y, prev, steps
-            dy = lu.solve(-r)
-            size = self._ymax(dy)
-            if not size <= CHORD_RATE * prev:
-                return y, prev, steps
-            y, prev, steps = y + dy, size, steps + 1
-            if size <= accept * (1 + self._ymax(y)):
-                return y, prev, steps
 
     # ---- start -------------------------------------------------------------------
     def start(self) -> Point:
