@@ -82,47 +82,26 @@ class RodSystem:
         """The LU of the whole bordered matrix, its rows in the rod's own units (:meth:`equation_scale`): the
         rod's border does not fill it, and block elimination costs ~25 % per step at N = 1500
         (benchmarks/bench.py section_bordered)."""
-        return full_bordered_lu(J, b, c, d, row_scale=self.equation_scale(J))
+        return full_bordered_lu(J, b, c, d, row_scale=self.equation_scale())
 
-    def equation_scale(self, J) -> np.ndarray:
-        """Powers of two nearest the inverse units of the equations (:func:`rodcont.linalg.powers_of_two`), so
-        that the LU pivots as on the dimensionless problem: the collocation rows by their equation's unit from
-        ``L`` and ``EI`` alone (force balance ``EI/L^3``, moment ``EI/L^2``, torque ``1/L^2``: all 1 for the paper's
-        rod), the boundary, interface and integral rows by the sum of their terms in the unknowns' units,
-        ``sum_j |J_ij| u_j`` (:meth:`unit_scale`: the same in any units, and a dense integral row stays small).
-        Unscaled, forces x 1e6 left the torque rows 1e-6 of the others, partial pivoting spoiled them, and a
-        fold's torque was 1.2e-8 off (tests/test_units.py)."""
-        units, other = self._collocation_units()
-        if np.any(other):
-            pos, rows, ux = self._other_terms(J, other)
-            units = units.copy()
-            units[other] = np.bincount(rows, weights=np.abs(J.data[pos]) * ux, minlength=units.size)[other]
-        return powers_of_two(units)
-
-    def _collocation_units(self) -> tuple[np.ndarray, np.ndarray]:
-        """The unit of each collocation row (1 elsewhere) and the mask of the other rows, in the Jacobian's row
-        order (once per discretisation)."""
+    def equation_scale(self) -> np.ndarray:
+        """Powers of two nearest the inverse units of the collocation rows (:func:`rodcont.linalg.powers_of_two`),
+        so that the LU pivots as on the dimensionless problem: each row by its equation's unit from ``L`` and
+        ``EI`` alone (force balance ``EI/L^3``, moment ``EI/L^2``, torque ``1/L^2``: all 1 for the paper's rod,
+        whose LU is then the raw matrix's bit for bit). Unscaled, forces x 1e6 left the torque rows 1e-6 of
+        the others, partial pivoting spoiled them, and a fold's torque was 1.2e-8 off (tests/test_units.py).
+        The few boundary, interface and integral rows are left at 1: scaled by their terms in the unknowns'
+        units, the paper's pivots changed and a trace in a pipe stopped elsewhere near its singular point
+        (test_contact.py::test_a_trace_stopped_by_a_singular_point_says_so...). Once per discretisation."""
         disc = self.disc
-        cached = self.__dict__.get("_units_cache")
+        cached = self.__dict__.get("_equation_scale")
         if cached is None or cached[0] is not disc:
             force = self.rod.EI / self.rod.L**2
-            n, m = disc.problem.n_fields, disc.problem.n_fields * disc.npts
-            natural = np.arange(disc.size)
+            m = disc.problem.n_fields * disc.npts
             units = np.ones(disc.size)
-            units[:m] = np.array([force / self.rod.L] * 3 + [force] * 2 + [self.rod.L**-2])[natural[:m] % n]
-            cached = self._units_cache = (disc, units[disc.row_order], natural[disc.row_order] >= m, None)
-        return cached[1], cached[2]
-
-    def _other_terms(self, J, other: np.ndarray) -> tuple:
-        """Positions in ``J.data`` of the entries of the ``other`` rows, their rows and their columns' units
-        (once per sparsity pattern: a discretisation's Jacobians share their index arrays)."""
-        disc, units, mask, terms = self._units_cache
-        if terms is None or terms[0] is not J.indices:
-            pos = np.flatnonzero(other[J.indices])
-            cols = np.repeat(np.arange(J.shape[1]), np.diff(J.indptr))[pos]
-            terms = (J.indices, pos, J.indices[pos], self.unit_scale()[0][cols])
-            self._units_cache = (disc, units, mask, terms)
-        return terms[1:]
+            units[:m] = np.tile([force / self.rod.L] * 3 + [force] * 2 + [self.rod.L**-2], disc.npts)
+            cached = self._equation_scale = (disc, powers_of_two(units[disc.row_order]))
+        return cached[1]
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
