@@ -260,3 +260,32 @@ def test_the_tracker_traces_fd_bratu_through_its_fold_without_filling(monkeypatc
     fold = next(q for q in pts if q.kind == "fold")
     assert made and max(made) <= 1.5
     assert abs(fold.p - fd_bratu_fold(n)[1]) < 1e-9
+
+
+def test_an_lu_with_a_row_scale_solves_and_takes_the_determinant_of_the_matrix_itself(monkeypatch):
+    """LU(A, row_scale=r) factorises R A (powers of two: formed exactly, its pattern and explicit zeros kept) and
+    answers for A: its solves, transposed solves and determinant against numpy's dense ones, on a matrix whose
+    rows span 1e-6 .. 1e6; and full_bordered_lu scales J's rows, not the border row."""
+    rng = np.random.default_rng(5)
+    A = np.diag(rng.uniform(1, 2, 30)) + 0.1 * rng.standard_normal((30, 30))
+    A[3, 7] = 0.0
+    A = np.logspace(-6, 6, 30)[:, None] * A
+    As = sp.csc_matrix((A.ravel(), np.nonzero(np.ones_like(A))), shape=A.shape)  # A[3, 7]: an explicit zero
+    r = linalg.powers_of_two(np.abs(A).max(axis=1))
+    assert np.all(np.frexp(r)[0] == 0.5)
+    assert np.all((0.5 <= r * np.abs(A).max(axis=1)) & (r * np.abs(A).max(axis=1) <= 2))
+    factorised, splu = [], spla.splu
+    monkeypatch.setattr(spla, "splu", lambda B, **kw: factorised.append(B) or splu(B, **kw))
+    lu = LU(As, row_scale=r)
+    assert As.nnz == 30 * 30 and np.array_equal(factorised[0].indices, As.indices)
+    assert np.array_equal(factorised[0].toarray(), r[:, None] * A)
+    b = rng.standard_normal(30)
+    assert np.allclose(lu.solve(b), np.linalg.solve(A, b), rtol=1e-10, atol=0)
+    assert np.allclose(lu.solve(b, trans=True), np.linalg.solve(A.T, b), rtol=1e-10, atol=0)
+    sign, log = np.linalg.slogdet(A)
+    assert lu.det()[0] == sign and lu.det()[1] == pytest.approx(log, rel=1e-12)
+    assert list(linalg.powers_of_two([0.0, np.inf, 3.0, 0.25])) == [1.0, 1.0, 0.25, 4.0]
+    J = sp.csc_matrix(A[:-1, :-1])
+    M = full_bordered_lu(J, A[:-1, -1], A[-1, :-1], A[-1, -1], row_scale=r[:-1])
+    assert np.array_equal(M._r, np.append(r[:-1], 1.0))
+    assert np.allclose(M.solve(b), np.linalg.solve(A, b), rtol=1e-10, atol=0)

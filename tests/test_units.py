@@ -23,6 +23,9 @@ is a diagram or a trace).
   (``diagram._pencil``).
 """
 
+import json
+import os
+
 import numpy as np
 import pytest
 from hypothesis import Phase, example, given, settings
@@ -30,6 +33,7 @@ from hypothesis import strategies as st
 
 import rodcont
 from rodcont.contact import Wall
+from rodcont.linalg import full_bordered_lu
 from rodcont.rod import RodParameters
 from rodcont.stability import spectrum
 from rodcont.system import RodSystem
@@ -39,6 +43,9 @@ FORCE_EXP = st.floats(-6.0, 6.0)
 # each example is a diagram or a trace (5-25 s): few, and a failure is reported as found (a shrink would
 # retrace); the explicit examples run first
 FEW = {"max_examples": 2, "deadline": None, "phases": (Phase.explicit, Phase.generate)}
+with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "lagrangian_folds.json")) as fh:
+    # the Gamma = 1 branch's 2 -> 3 fold, solved in the Lagrangian formulation (tests/lagrangian_reference.py)
+    SEED_FOLD = next(r for r in json.load(fh)["secondary_folds"] if (r["gamma"], r["n"]) == (1.0, 2))
 
 
 def scaled_rod(a: float, b: float, rod: RodParameters | None = None) -> RodParameters:
@@ -73,11 +80,17 @@ def _fold_rows(branch) -> list[dict]:
 # --------------------------------------------------------------------------
 # The issue's case
 # --------------------------------------------------------------------------
-def test_seed_branch_in_other_length_units():
+@pytest.fixture(scope="module")
+def seed_branch():
+    """The Gamma = 1 seed branch in the paper's units (``rodcont trace --gamma 1 --from-straight 25.778``)."""
+    return rodcont.trace(1.0, from_straight=25.778)
+
+
+def test_seed_branch_in_other_length_units(seed_branch):
     """``rodcont trace --T 10 --w 1 --EI 100 --GJ 75 --EA 255 --L 10 --from-straight 25.778`` is the Gamma = 1
     seed branch with lengths x 10: the same fold, the torque x 10, and the same stability (4 unstable modes
     before the fold, 5 after; the code before labelled it 0 | 5, its mesh cap (pi/h)^4 being in 1/length^4)."""
-    ref = rodcont.trace(1.0, from_straight=25.778)
+    ref = seed_branch
     ten = rodcont.trace(None, rod=RodParameters(EI=100.0, GJ=75.0, EA=255.0, w=1.0, L=10.0), T=10.0,
                         from_straight=25.778)
     (f0,), (f1,) = ref.folds, ten.folds
@@ -86,6 +99,70 @@ def test_seed_branch_in_other_length_units():
     assert (f0["unstable_before"], f0["unstable_after"]) == (4, 5)
     assert (f1["unstable_before"], f1["unstable_after"]) == (4, 5)
     assert runs(ref.table["unstable_modes"]) == runs(ten.table["unstable_modes"]) == [4, 5]
+
+
+def test_a_fold_in_force_units_x_1e6_is_located_as_in_the_papers(seed_branch):
+    """The seed branch with forces x 1e6 (the fuzz probe issue22:units): its 2 -> 3 fold's torque was 1.2e-8 off
+    the paper-units run's (x 1e6), its dPhi/ds 6.7e-6 at the located fold: the raw bordered matrix left the
+    torque rows 1e-6 of the others and partial pivoting spoiled them. In the rod's units
+    (RodSystem.equation_scale) the torque agrees with the paper-units run and with the Lagrangian
+    formulation's (tests/data/lagrangian_folds.json) to 1e-10, Phi with the Lagrangian fold to 1e-9."""
+    big = rodcont.trace(None, rod=RodParameters(EI=1e6, GJ=7.5e5, EA=2.55e8, w=1e7, L=1.0), T=1e7,
+                        from_straight=25.778)
+    (f0,), (f1,) = seed_branch.folds, big.folds
+    assert abs(f1["phi_L"] - SEED_FOLD["phi_L"]) <= 1e-9
+    assert f1["torque"] == pytest.approx(1e6 * f0["torque"], rel=1e-10)
+    assert f1["torque"] == pytest.approx(1e6 * SEED_FOLD["torque"], rel=1e-10)
+    assert abs(big.table["dphi_ds"][f1["index"]]) <= 1e-10
+
+
+def _bordered_parts(system: RodSystem, x: np.ndarray):
+    F, J, (Fp,) = system.disc.linearise(x, system.base, [0])
+    return J, Fp
+
+
+def _bent_rod():
+    """The paper's rod at N = 15 and a bent, twisted state of it (not a solution: the Jacobian is all that is read)."""
+    s = RodSystem(RodParameters(), gamma=1.0, N=15)
+    x = s.disc.project([lambda S: 0.02 * np.sin(2 * np.pi * S), lambda S: 0.03 * np.sin(np.pi * S) ** 2,
+                        lambda S: 20 * S + 0.1 * np.sin(3 * S), lambda S: 0.5 * np.cos(S), lambda S: S - 0.3,
+                        lambda S: 10 + 0.2 * S])
+    return s, x
+
+
+def _tangent(solver, J, Fp, row):
+    e = np.zeros(J.shape[0] + 1)
+    e[-1] = 1.0
+    return solver(J, Fp, row, 0.0).solve(e)
+
+
+def test_the_rods_bordered_lu_gives_the_same_tangent_in_units_of_powers_of_two():
+    """Lengths x 2^3 and forces x 2^20 map the rod's Jacobian exactly (every term of a sum in the same unit). The
+    rod's bordered LU, its collocation rows in the rod's units (RodSystem.equation_scale), pivots as in the
+    paper's units but for the few boundary rows: its tangent is the paper-units tangent times the unknowns'
+    units to 4e-12 (relative to its largest entry). The raw matrix's LU (main before) left the torque rows
+    2^-26 of the moment rows: 7e-10."""
+    s, x = _bent_rod()
+    s2, y = in_units(s, x, 2.0 ** 3, 2.0 ** 20)
+    unit = np.append(s2.unit_scale()[0] / s.unit_scale()[0], 1.0)  # the unknowns' units; phi_L's is 1
+    (J, Fp), (J2, Fp2) = _bordered_parts(s, x), _bordered_parts(s2, y)
+    row = np.full(J.shape[0], 1e-4)  # an arclength row: weights in 1 / unit^2 times a tangent in the unit
+    error = {}
+    for name, solver, solver2 in (("rod", s.bordered_solver, s2.bordered_solver),
+                                  ("raw", full_bordered_lu, full_bordered_lu)):
+        t, t2 = _tangent(solver, J, Fp, row), _tangent(solver2, J2, Fp2, row / unit[:-1])
+        error[name] = np.max(np.abs(t2 / unit - t)) / np.max(np.abs(t))
+    assert error["rod"] <= 1e-10 < error["raw"], error
+
+
+def test_the_rods_bordered_lu_in_the_papers_units_is_the_raw_matrixs():
+    """For the paper's rod (L = EI = 1) every row scale is 1: the LU, and every trace in those units, is the one
+    before the rows were scaled, bit for bit."""
+    s, x = _bent_rod()
+    J, Fp = _bordered_parts(s, x)
+    row = np.full(J.shape[0], 1e-4)
+    assert np.all(s.equation_scale() == 1.0)
+    assert np.array_equal(_tangent(s.bordered_solver, J, Fp, row), _tangent(full_bordered_lu, J, Fp, row))
 
 
 # --------------------------------------------------------------------------

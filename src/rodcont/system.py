@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .collocation import Collocation
-from .linalg import full_bordered_lu
+from .linalg import full_bordered_lu, powers_of_two
 from .rod import PARAMS, EulerianRod, RodParameters
 
 SYSTEM_PARAMS = PARAMS + ("gamma",)
@@ -78,9 +78,30 @@ class RodSystem:
     wall's force with ``wall``; one section).
     """
 
-    #: the LU of the whole bordered matrix: the rod's border does not fill it, and block elimination
-    #: costs ~25 % per step at N = 1500 (benchmarks/bench.py section_bordered)
-    bordered_solver = staticmethod(full_bordered_lu)
+    def bordered_solver(self, J, b, c, d):
+        """The LU of the whole bordered matrix, its rows in the rod's own units (:meth:`equation_scale`): the
+        rod's border does not fill it, and block elimination costs ~25 % per step at N = 1500
+        (benchmarks/bench.py section_bordered)."""
+        return full_bordered_lu(J, b, c, d, row_scale=self.equation_scale())
+
+    def equation_scale(self) -> np.ndarray:
+        """Powers of two nearest the inverse units of the collocation rows (:func:`rodcont.linalg.powers_of_two`),
+        so that the LU pivots as on the dimensionless problem: each row by its equation's unit from ``L`` and
+        ``EI`` alone (force balance ``EI/L^3``, moment ``EI/L^2``, torque ``1/L^2``: all 1 for the paper's rod,
+        whose LU is then the raw matrix's bit for bit). Unscaled, forces x 1e6 left the torque rows 1e-6 of
+        the others, partial pivoting spoiled them, and a fold's torque was 1.2e-8 off (tests/test_units.py).
+        The few boundary, interface and integral rows are left at 1: scaled by their terms in the unknowns'
+        units, the paper's pivots changed and a trace in a pipe stopped elsewhere near its singular point
+        (test_contact.py::test_a_trace_stopped_by_a_singular_point_says_so...). Once per discretisation."""
+        disc = self.disc
+        cached = self.__dict__.get("_equation_scale")
+        if cached is None or cached[0] is not disc:
+            force = self.rod.EI / self.rod.L**2
+            m = disc.problem.n_fields * disc.npts
+            units = np.ones(disc.size)
+            units[:m] = np.tile([force / self.rod.L] * 3 + [force] * 2 + [self.rod.L**-2], disc.npts)
+            cached = self._equation_scale = (disc, powers_of_two(units[disc.row_order]))
+        return cached[1]
 
     def __init__(self, rod: RodParameters, gamma: float | None = None, N: int = 15, k: int = 5,
                  param: str = "phi_L", phi_L: float = 0.0, breakpoints=None, T: float | None = None,
@@ -399,9 +420,9 @@ class RodSystem2:
     EI, GJ, EA`` (the others, including ``T``, fixed).
     """
 
-    #: the LU of the whole bordered matrix: the rod's border does not fill it, and block elimination
-    #: costs ~25 % per step at N = 1500 (benchmarks/bench.py section_bordered)
-    bordered_solver = staticmethod(full_bordered_lu)
+    def bordered_solver(self, J, b, c, d):
+        """The one-parameter system's (:meth:`RodSystem.bordered_solver`: the same rows)."""
+        return self.one.bordered_solver(J, b, c, d)
 
     def __init__(self, one: RodSystem, param: str):
         if not one.ends.is_default:
