@@ -223,6 +223,34 @@ def section_long(a, old):
               f"{tail}")
 
 
+DRILL = """
+import json, os, sys, time
+from rodcont import drilling
+ex = sys.argv[1]
+well = drilling.Well.from_toml(os.path.join(ex, "well_s3d.toml"))
+string = drilling.DrillString.from_toml(os.path.join(ex, "drill_string.toml"))
+t = time.process_time()
+soft = drilling.soft_string(well, string, 3500.0, "slack-off", mu=0.25)
+t_soft = time.process_time() - t
+t = time.process_time()
+td = drilling.torque_and_drag(well, string, 3500.0, "slack-off", mu=0.25)
+t_stiff = time.process_time() - t
+print(json.dumps(dict(stiff=t_stiff, soft=t_soft, hook=td.hook_load, soft_hook=soft[0], N=td.N)))
+"""
+
+
+def section_drilling(a, old):
+    """Issue 23's speed figure: one slack-off equilibrium with friction of the 3-section string at 3500 m on the
+    benchmark well (target 10 s of CPU), the soft-string estimate's time beside it (0ee0293 has no drilling)."""
+    print(f"\n## torque and drag (CPU, best of {min(a.reps, 2)})   {load()}")
+    runs = [json.loads(child([sys.executable, "-c", DRILL, os.path.join(ROOT, "examples")],
+                             env_for(SRC, "new"))[2].splitlines()[-1]) for _ in range(1 if a.quick else min(a.reps, 2))]
+    r = min(runs, key=lambda q: q["stiff"])
+    print(f"one slack-off equilibrium, mu 0.25, bit at 3500 m (well_s3d, 3 sections, N = {r['N']}): "
+          f"{r['stiff']:.1f} s, hook load {r['hook'] / 1e3:.1f} kN  target 10 s  {verdict(r['stiff'] <= 10.0)}")
+    print(f"the soft string on the same well: {1e3 * r['soft']:.0f} ms, hook load {r['soft_hook'] / 1e3:.1f} kN")
+
+
 FILL = """
 import collections, json, sys
 import scipy.sparse.linalg as spla
@@ -327,7 +355,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--reps", type=int, default=None, help="repetitions (best of; default 5, --quick 3)")
     ap.add_argument("--old", default="/work/old", help="a checkout of 0ee0293 (else git archive of it)")
-    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill breakdown")
+    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill breakdown drilling")
     a = ap.parse_args()
     a.reps = a.reps or (3 if a.quick else 5)
     import numpy as np
@@ -335,7 +363,7 @@ def main():
           f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, {load()}")
     old = old_source(a.old)
     sections = dict(trace=section_trace, floor=section_floor, diagram=section_diagram, long=section_long,
-                    fill=section_fill, breakdown=section_breakdown)
+                    fill=section_fill, breakdown=section_breakdown, drilling=section_drilling)
     for name, fn in sections.items():
         if not a.only or name in a.only:
             fn(a, old)
