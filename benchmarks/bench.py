@@ -81,23 +81,12 @@ def child(cmd, env, cwd=None) -> tuple[float, float, str]:
 
 FIRST_TRACE = """
 import json, sys, time
-import numpy, scipy.sparse.linalg as spla
+import numpy, scipy.sparse.linalg
 import rodcont
-lus, splu = [0], spla.splu
-
-
-# every sparse LU of the trace (steps, locations, estimates, counts): load-free; it includes the remesh transfer's
-# small normal equations now (6 at Gamma = 1), solved by spsolve and so not counted at 0ee0293
-def counted(*args, **kwargs):
-    lus[0] += 1
-    return splu(*args, **kwargs)
-
-
-spla.splu = counted
 t = time.process_time()
 br = rodcont.trace(float(sys.argv[1]))
 t = time.process_time() - t
-print(json.dumps(dict(cpu=t, steps=int(br.steps), lus=lus[0], folds=[float(f["phi_L"]) for f in br.folds])))
+print(json.dumps(dict(cpu=t, steps=int(br.steps), folds=[float(f["phi_L"]) for f in br.folds])))
 """
 
 
@@ -114,15 +103,14 @@ def section_trace(a, old):
                     out = child([sys.executable, "-c", FIRST_TRACE, str(gamma)], env_for(src, tag))[2]
                     runs[tag].append(json.loads(out.splitlines()[-1]))
         new = min(runs["new"][1:], key=lambda r: r["cpu"])
-        line = f"Gamma = {gamma:g}: now {new['cpu']:.3f} s ({new['steps']} steps, {new['lus']} sparse LUs)"
+        line = f"Gamma = {gamma:g}: now {new['cpu']:.3f} s ({new['steps']} steps)"
         if runs["old"]:
             o = min(runs["old"][1:], key=lambda r: r["cpu"])
             ratio = new["cpu"] / o["cpu"]
             if gamma == 1.0:
                 a.old_gamma1 = o["cpu"]
             moved = max((abs(p - q) for p, q in zip(new["folds"], o["folds"])), default=0.0)
-            line += (f", 0ee0293 {o['cpu']:.3f} s ({o['steps']} steps, {o['lus']} sparse LUs): ratio {ratio:.2f}  "
-                     f"target 0.50  "
+            line += (f", 0ee0293 {o['cpu']:.3f} s ({o['steps']} steps): ratio {ratio:.2f}  target 0.50  "
                      f"{verdict(ratio <= 0.5)};  folds {', '.join(f'{p:.12f}' for p in new['folds'])} "
                      f"(largest change {moved:.1e}, same count {len(new['folds']) == len(o['folds'])})")
         print(line)

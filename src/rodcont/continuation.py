@@ -307,7 +307,7 @@ class FoldDetector(Detector):
         s = tracker.settings
         on_fold_start = base.kind == Kind.START and (abs(base.tp) < 1e3 * s.fold_tol or tracker.start_on_fold)
         if base.tp * new.tp < 0 and not on_fold_start:
-            f = tracker.locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, Kind.FOLD, end=new)
+            f = tracker.locate(base, ds, lambda q: q.tp, base.tp, new.tp, s.fold_tol, Kind.FOLD)
             if f is not None:
                 return [Finding(f.ds, f)]
             tracker.not_located(Kind.FOLD, base, new)
@@ -346,7 +346,7 @@ class BranchPointDetector(Detector):
             return q.det_sign * s0 * math.exp(min(q.det_log - ref, 700.0))
 
         g1 = -math.exp(min(new.det_log - ref, 700.0))
-        f = tracker.locate(base, ds, gdet, 1.0, g1, s.locate_tol, Kind.BRANCH_POINT, end=new)
+        f = tracker.locate(base, ds, gdet, 1.0, g1, s.locate_tol, Kind.BRANCH_POINT)
         if f is None:
             tracker.not_located(Kind.BRANCH_POINT, base, new)
             return []
@@ -370,7 +370,7 @@ class ValueDetector(Detector):
             f = tracker.solve_at_value(base, new, ds, v, self.kind)
             if f is None:
                 f = tracker.locate(base, ds, lambda q, v=v: q.p - v, base.p - v, new.p - v, 1e-13 * (1 + abs(v)),
-                                   self.kind, end=new)
+                                   self.kind)
             if f is None:
                 continue
             if abs(f.p - v) < 1e-12 * (1 + abs(v)):
@@ -391,8 +391,7 @@ class EventDetector(Detector):
             return []  # the first step from a start on the event, heading in (check_start)
         if not g0 * g1 < 0:
             return []
-        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind,
-                           end=new)
+        f = tracker.locate(base, ds, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300), ev.kind)
         status = ev.status if ev.action in (Action.STOP, Action.SEGMENT) else None
         if f is not None:
             f.message = ev.name
@@ -850,7 +849,7 @@ class Tracker:
 
     # ---- location of special points --------------------------------------------
     def locate(self, base: Point, ds_hi: float, g: Callable[[Point], float], g0: float, g1: float,
-               tol: float, kind: str, continuous: bool = True, end: Point | None = None) -> Point | None:
+               tol: float, kind: str, continuous: bool = True) -> Point | None:
         """Secant (Illinois) on ``g`` along the arc from ``base``; ``g(0) = g0``, ``g(ds_hi) = g1``.
 
         Returns the located point (``located`` True when ``|g| <= tol``), the
@@ -862,16 +861,11 @@ class Tracker:
         solution, but if they differ (by more than 1e-9 in the arclength norm) the two
         sides lie on different branches (seen at a crossing of two branches, 5e-5 from
         it, the point on the other branch) and the point is kept as bracketed.
-
-        ``end``: the point corrected from ``base`` at ``ds_hi`` (the step's end): the first iterate
-        starts from it, on its factorisation (from the base, a whole step away, it took 3 at the
-        Gamma = 1 validity guard; from the end, 1).
         """
         s = self.settings
         a, b, fa, fb = 0.0, ds_hi, g0, g1
         side = 0
-        best = None
-        last = (ds_hi, end) if end is not None and getattr(end.solver, "lu", None) is not None else None
+        best = last = None
         ends = [base, None]  # the converged points at a and b (None: the step's end, not at hand)
         for _ in range(s.locate_max_iter):
             m = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
@@ -946,7 +940,7 @@ class Tracker:
                     continue
                 g1 = ev.function(f.point)
                 e = self.locate(base, f.offset, ev.function, g0, g1, ev.tol * max(abs(g0), abs(g1), 1e-300),
-                                ev.kind, end=f.point)
+                                ev.kind)
                 stop = StopReason(ev.status, ev.name, ev.label)
                 if e is None:
                     return found[:j] + [Finding(f.offset, None, stop)]

@@ -899,7 +899,7 @@ class ZoneChangeDetector(Detector):
         if g0 * g1 < 0:
             # (g jumps where the pressure's sample changes: a bracket shrunk to rounding is the location)
             f = tracker.locate(base, ds, g, g0, g1, self.tol * max(abs(g0), abs(g1), 1e-300), self.kind,
-                               continuous=False, end=new)
+                               continuous=False)
             if f is not None:
                 f.message = self.name
         if f is None or others:
