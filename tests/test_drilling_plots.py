@@ -14,17 +14,12 @@ import rodcont.plots as plots_mod
 from conftest import assert_picture, run
 from rodcont.branchfile import load_branch
 from rodcont.contact import MAX_PENETRATION
-from rodcont.drilling import DrillString, Section, Well
+from rodcont.drilling import DrillString, Well
 from rodcont.drivers.broomstick import Broomstick, write_broomstick
 from rodcont.drivers.trip import trip
+from short_well import COLLAR, DEPTHS, HOLE, PIPE, STATIONS
 
 HERE = os.path.dirname(__file__)
-# a short build-and-hold well (vertical to 100 m, 20 degrees at 250 m) and a collar under drill pipe
-STATIONS = np.array([[0.0, 0, 0], [100.0, 0, 0], [250.0, 20.0, 30.0], [300.0, 20.0, 30.0]])
-COLLAR = Section("collar", 50.0, 1.71e7, 1.32e7, 5.88e9, 2189.0, 0.0889)
-PIPE = Section("pipe", None, 1.23e6, 9.5e5, 7.05e8, 285.0, 0.0635)
-HOLE = 0.2159
-DEPTHS = (290.0, 300.0)
 
 
 @pytest.fixture(scope="module")
