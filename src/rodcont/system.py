@@ -208,7 +208,6 @@ class RodSystem:
         new = RodSystem.__new__(RodSystem)
         new.__dict__.update(self.__dict__)
         new.disc = self.model.discretise(k=self.disc.k if k is None else k, breakpoints=np.asarray(breakpoints, float))
-        new.model.output_evaluator(new.disc)
         new.base = self.base.copy()
         return new
 
@@ -239,12 +238,12 @@ class RodSystem:
         (scale ``max(|torque|, EI/L)``) and the parameters solved for (``phi_L`` by one radian, ``T`` by the
         arclength's force scale)."""
         p = self.params(value)
-        o = self.model.outputs(self.disc, x, p)
+        stretch, l0, torque = self.model.integral_outputs(self.disc, x, p)
         L = self.rod.L
         pf = self.disc.full_params(x, p)
         freed = [(float(pf[self.model.param_names.index(q)]), self._free_unit(q)) for q in self.freed]
-        return ((o["stretch"], o["l0"], o["torque"], *(v for v, _ in freed)),
-                (1.0, L, max(abs(o["torque"]), float(p[3]) / L), *(u for _, u in freed)))
+        return ((stretch, l0, torque, *(v for v, _ in freed)),
+                (1.0, L, max(abs(torque), float(p[3]) / L), *(u for _, u in freed)))
 
     def error_fields(self):
         """The fields the error estimate compares point by point: the deflections, on the scale ``L``."""
