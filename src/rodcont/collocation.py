@@ -758,10 +758,10 @@ class Collocation:
         if cached is None or cached[0] != key:
             cached = self._transfer_from = (key, self._transfer_parts(source))
         out = np.zeros(self.size)
-        for i, (m, At, AtA, svals, scols, w) in enumerate(cached[1]):
+        for i, (m, At, lu, svals, scols, w) in enumerate(cached[1]):
             c = x[source.index[i]]
             rhs = (np.einsum("nqa,qa->nq", svals, c[scols]) * w[:, None]).ravel()
-            out[self.index[i]] = spla.spsolve(AtA, At @ rhs)
+            out[self.index[i]] = lu.solve(At @ rhs)
         if self.n_free:
             out[self.free_index] = x[source.free_index]
         return out
@@ -787,7 +787,8 @@ class Collocation:
                 A = sp.csr_matrix((data, (rows, cols)), shape=((m + 1) * npts, self.spaces[i].dim))
                 scols = sfirst[:, None] + np.arange(source.spaces[i].order)[None, :]
                 At = A.T.tocsr()
-                per_order[key] = (m, At, (At @ A).tocsc(), svals[:m + 1], scols, w)
+                # factorised once per order (a remesh carries a solution and a tangent, six fields each)
+                per_order[key] = (m, At, spla.splu((At @ A).tocsc()), svals[:m + 1], scols, w)
             parts.append(per_order[key])
         return parts
 
