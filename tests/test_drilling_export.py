@@ -53,10 +53,9 @@ def _clearance(S, depth):
 def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file, tmp_path, point):
     """Points 0 and -1 (290 and 300 m) exported as CSV on the solution's mesh grid: S runs from 0 to the point's
     depth; the axial force and the torque at S = 0 are the stored hook load and surface torque (1e-8); the
-    trapezoid rule on the exported pressure is the stored side force (1e-10: the solve integrated its pressure by
-    the same rule on the same points, so only the rebuilt wall and solution can differ; on a uniform grid a point
-    contact of a millimetre, the collar's top on the wall at 290 m, is stepped over and 2.8 % of the side force is
-    missed, hence the mesh grid); Newton on the rebuilt system does not move the stored solution (the friction,
+    rebuilt point's side force is the stored one (1e-10, the collocation rule of both: only the rebuilt wall and
+    solution can differ) and the exported pressure its law (on a uniform grid a point contact of a millimetre, the
+    collar's top on the wall at 290 m, is stepped over, hence the mesh grid); Newton on the rebuilt system does not move the stored solution (the friction,
     the sections, the loads and the law are the solved ones); the gap is above minus the penetration guard times
     a clearance computed here from the hole and the pipes; in_contact is the gap below 1 % of it, so it is 1
     exactly where the pressure is above its level off the wall in each pipe's hole. The VTK file carries the same
@@ -75,9 +74,8 @@ def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file
     assert f["axial_force"][0] == pytest.approx(hook, rel=1e-8)
     assert f["torque"][0] == pytest.approx(torque, rel=1e-8)
     P = f["pressure"]
-    assert np.sum(0.5 * (P[1:] + P[:-1]) * np.diff(S)) == pytest.approx(float(data.branch["side_force"][i]),
-                                                                          rel=1e-10)
     td = drill_point(data, i)
+    _assert_stored_side_force(td, S, P, float(data.branch["side_force"][i]))
     r = td.system.disc.newton(td.x, td.system.base, tol=1e-10)
     # the trip's solves stop at their own Newton/chord tolerance (measured 1.5e-9 of max|x| with the chord
     # homotopy, below 1e-9 without it); a wrongly rebuilt law, section or load moves the solution by O(1)
@@ -96,6 +94,15 @@ def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file
     assert float(arrays["S"][-1]) == depth
 
 
+def _assert_stored_side_force(td, S, P, stored):
+    """The rebuilt point's side force (the collocation rule, rod.contact) is the stored one to 1e-10 (only the
+    rebuilt wall and solution can differ) and the exported pressure is the rebuilt solution's law at S."""
+    sysm = td.system
+    con = sysm.model.contact(sysm.disc, td.x, td.params, S=S)
+    assert con["side_force"] == pytest.approx(stored, rel=1e-10)
+    assert np.allclose(P, con["pressure"], rtol=1e-12, atol=1e-12 * np.max(np.abs(P)))
+
+
 @pytest.fixture(scope="module")
 def wob_trace(tmp_path_factory):
     """Rotating off bottom at 300 m, then a trace in the force at the bit T from 0 to -20 kN (the weight on bit)."""
@@ -109,7 +116,7 @@ def wob_trace(tmp_path_factory):
 def test_an_exported_point_of_a_trace_in_the_bit_force_is_the_stored_equilibrium(wob_trace, tmp_path, point):
     """A trace in T (rodcont.drilling.trace_bit_force) keeps the drilling record: export rebuilds its points at the
     file's depth with each point's own T. On the mesh grid the axial force and the torque at S = 0 are the stored
-    hook load and surface torque (1e-8), the trapezoid rule on the exported pressure the stored side force (1e-10),
+    hook load and surface torque (1e-8), the rebuilt point's side force the stored one (1e-10),
     S runs from 0 to 300 m; Newton on the rebuilt system does not move the stored solution (a rebuild with the
     record's WOB 0 instead of the point's T moves it by O(1)); the last point's hook load is an independent solve
     drilling with 20 kN (1e-6, as the trace's own test)."""
@@ -124,9 +131,8 @@ def test_an_exported_point_of_a_trace_in_the_bit_force_is_the_stored_equilibrium
     hook = float(data.branch["hook_load"][i])
     assert f["axial_force"][0] == pytest.approx(hook, rel=1e-8)
     assert f["torque"][0] == pytest.approx(float(data.branch["surface_torque"][i]), rel=1e-8)
-    assert np.sum(0.5 * (P[1:] + P[:-1]) * np.diff(S)) == pytest.approx(float(data.branch["side_force"][i]),
-                                                                          rel=1e-10)
     td = drill_point(data, i)
+    _assert_stored_side_force(td, S, P, float(data.branch["side_force"][i]))
     assert td.wob == -float(data.branch["T"][i]) > 0
     r = td.system.disc.newton(td.x, td.system.base, tol=1e-10)
     assert r.converged and np.max(np.abs(r.x - td.x)) <= 1e-8 * np.max(np.abs(td.x))

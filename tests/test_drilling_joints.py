@@ -66,6 +66,22 @@ def test_the_pieces_tile_the_collocation_rule(point_contact):
     assert parts[0] == pytest.approx(collocated_integral(sysm, x, p, [0.0, 0.1, 0.3]).sum(), rel=1e-12)
 
 
+def test_the_total_side_force_and_its_zones_are_the_collocation_rules(point_contact):
+    """The total side force a solve prints, a file stores and the adaptive mesh watches (rod.contact's
+    ``side_force``) is the collocation rule's, whatever the sample points: at the midspan point contact the
+    shooting solution's reaction to 1e-5 (the trapezoid rule on 16 samples per interval it was before: 3.3e-3
+    low), the rule over the whole span to 1e-12; the one zone's force is all of it."""
+    sysm, x, p = point_contact
+    c = sysm.model.contact(sysm.disc, x, p)
+    near = np.linspace(0.49, 0.51, 20001)
+    at_near = sysm.model.contact(sysm.disc, x, p, S=near)
+    exact = heavy_rod_on_flat_wall(C - at_near["gap"].min(), 10.0)["total_side_force"]
+    assert c["side_force"] == pytest.approx(exact, rel=1e-5)
+    assert c["side_force"] == pytest.approx(collocated_integral(sysm, x, p, [0.0, 1.0])[0], rel=1e-12)
+    assert at_near["side_force"] == c["side_force"]
+    assert len(c["zones"]) == 1 and c["zones"][0][2] == pytest.approx(c["side_force"], rel=1e-12)
+
+
 def test_a_collars_contact_on_its_joint_is_the_refined_meshs():
     """Slack-off with the bit at 300 m in the short build-and-hold well (tests/test_drilling_export.py's: a 50 m
     collar under drill pipe): the joint from 281.72 to 290.86 m carries a contact zone under a metre wide on an
@@ -73,7 +89,7 @@ def test_a_collars_contact_on_its_joint_is_the_refined_meshs():
     (measured 1e-4), the same joint's on the solution with the mesh halved three times (8 times as many
     intervals, Newton from the transferred solution), as does the sum over the joints (1e-4, measured 1.2e-5); the
     law sampled on the spline by 16 Gauss points per piece was 10.8 % off on that joint at the adapted mesh and
-    1.6 % on the sum."""
+    1.6 % on the sum. The joints sum to the total side force (1e-12), as its rule is theirs."""
     from rodcont.drilling import DrillString, Well, joint_edges, joint_side_forces, torque_and_drag
     from test_drilling_export import COLLAR, HOLE, PIPE, STATIONS
     td = torque_and_drag(Well(STATIONS, hole_diameter=HOLE, friction=0.25), DrillString((COLLAR, PIPE), 0.847),
@@ -93,3 +109,4 @@ def test_a_collars_contact_on_its_joint_is_the_refined_meshs():
     assert j["side_force"][k] > 0.1 * j["side_force"].max()
     assert j["side_force"][k] == pytest.approx(ref[k], rel=1e-3)
     assert j["side_force"].sum() == pytest.approx(ref.sum(), rel=1e-4)
+    assert j["side_force"].sum() == pytest.approx(td.side_force, rel=1e-12)   # the joints tile the total

@@ -796,5 +796,31 @@ class Collocation:
         """Gauss rule of the mesh applied to values at the collocation points."""
         return float(np.dot(self.weights, values))
 
+    def integrate_between(self, values: np.ndarray, edges) -> np.ndarray:
+        """``integral of f dS`` between successive ``edges`` (increasing, clipped to the span), ``f`` given by its
+        ``values`` at the collocation points: on each mesh interval the polynomial through its ``k`` values,
+        integrated exactly over each piece. Over whole intervals it is :meth:`integrate` (the Gauss rule, the
+        load the discrete balance equations carry)."""
+        b, k = self.breakpoints, self.k
+        f = np.asarray(values, float).reshape(b.size - 1, k)
+        edges = np.asarray(edges, float)
+        cuts = np.union1d(b, np.clip(edges, b[0], b[-1]))
+        mid = 0.5 * (cuts[1:] + cuts[:-1])
+        parent = np.clip(np.searchsorted(b, mid, side="right") - 1, 0, b.size - 2)
+        h = np.diff(b)[parent]
+        g, wg = np.polynomial.legendre.leggauss(k)
+        nodes = 0.5 * (g + 1.0)                      # the collocation points on [0, 1]
+        ta, te = (cuts[:-1] - b[parent]) / h, (cuts[1:] - b[parent]) / h
+        t = 0.5 * (ta + te)[:, None] + 0.5 * (te - ta)[:, None] * g[None, :]   # k Gauss points of each piece
+        diff = t[:, :, None] - nodes[None, None, :]   # Lagrange basis of the nodes at t: exact for degree k - 1
+        basis = np.ones(t.shape + (k,))
+        for j in range(k):
+            others = [i for i in range(k) if i != j]
+            basis[:, :, j] = np.prod(diff[:, :, others], axis=2) / np.prod(nodes[j] - nodes[others])
+        piece = 0.5 * (te - ta) * h * np.einsum("q,pqj,pj->p", wg, basis, f[parent])
+        inside = (mid > edges[0]) & (mid < edges[-1])   # the pieces between the first and the last edge
+        which = np.searchsorted(edges, mid[inside], side="right") - 1
+        return np.bincount(which, weights=piece[inside], minlength=edges.size - 1)
+
     def interval_of(self, S: np.ndarray) -> np.ndarray:
         return locate(self.breakpoints, np.asarray(S, float))

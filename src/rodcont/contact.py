@@ -225,12 +225,14 @@ def _clearance_table(table) -> tuple:
     return rows
 
 
-def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tuple[float, float, float]]:
+def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float,
+                  integral=None) -> list[tuple[float, float, float]]:
     """Contact zones ``(S_start, S_end, force)`` on a fine grid ``S``: runs where ``pressure >= level``.
 
     ``force`` is the wall's resultant on the zone: the integral of ``p`` from
     half-way to the previous zone (or the start) to half-way to the next one
-    (or the end). The smoothed law turns the point forces of the exact problem
+    (or the end); ``integral(edges)`` gives the integrals between successive edges (default: the trapezoid
+    rule on ``S``). The smoothed law turns the point forces of the exact problem
     (an isolated contact, the edge of a contact arc) into narrow peaks whose
     flanks lie just outside the contact run; the force in the gaps between
     zones is ``O(eps)``. A zone of a single grid point is a point contact
@@ -241,10 +243,13 @@ def contact_zones(S: np.ndarray, pressure: np.ndarray, level: float) -> list[tup
         return []
     edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
     runs = list(zip(edges[::2], edges[1::2] - 1))  # first and last grid index of each run
-    cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
     bounds = [0] + [(runs[i][1] + runs[i + 1][0]) // 2 for i in range(len(runs) - 1)] + [S.size - 1]
-    return [(float(S[a]), float(S[b]), float(cum[bounds[i + 1]] - cum[bounds[i]]))
-            for i, (a, b) in enumerate(runs)]
+    if integral is None:
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
+        force = np.diff(cum[bounds])
+    else:
+        force = integral(S[bounds])
+    return [(float(S[a]), float(S[b]), float(force[i])) for i, (a, b) in enumerate(runs)]
 
 
 

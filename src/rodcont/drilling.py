@@ -545,33 +545,12 @@ def joint_edges(depth: float, joint_length: float = JOINT_LENGTH) -> np.ndarray:
 
 def collocated_integral(sysm, x, p, edges) -> np.ndarray:
     """The wall's force ``integral of p dS`` between successive ``edges`` (increasing, in ``[0, L]``) as the collocation
-    equations see it: on each mesh interval ``p`` is the polynomial through its values at the interval's ``k``
-    collocation points (where alone the equations load the rod), integrated exactly over each piece. Over a whole
-    interval that is the Gauss rule of the collocation points, the load the discrete force balance carries; a fine
-    sampling of the law on the spline instead misreads a point contact narrower than an interval (a straight rod's
-    midspan contact at eps = 1e-6: 3.5e-3 below the exact reaction, this 1.2e-6; tests/test_drilling_joints.py)."""
+    equations see it (:meth:`rodcont.collocation.Collocation.integrate_between` of the pressure at the collocation
+    points, where alone the equations load the rod); a fine sampling of the law on the spline instead misreads a
+    point contact narrower than an interval (a straight rod's midspan contact at eps = 1e-6: 3.5e-3 below the
+    exact reaction, this 1.2e-6; tests/test_drilling_joints.py)."""
     disc = sysm.disc
-    b, k = disc.breakpoints, disc.k
-    P = sysm.model.contact(disc, x, p, S=disc.S)["pressure"].reshape(b.size - 1, k)
-    cuts = np.union1d(b, np.clip(np.asarray(edges, float), b[0], b[-1]))
-    parent = np.clip(np.searchsorted(b, 0.5 * (cuts[1:] + cuts[:-1]), side="right") - 1, 0, b.size - 2)
-    h = np.diff(b)[parent]
-    g, wg = np.polynomial.legendre.leggauss(k)
-    nodes = 0.5 * (g + 1.0)                      # the collocation points on [0, 1]
-    ta, te = (cuts[:-1] - b[parent]) / h, (cuts[1:] - b[parent]) / h
-    t = 0.5 * (ta + te)[:, None] + 0.5 * (te - ta)[:, None] * g[None, :]   # k Gauss points of each piece
-    # Lagrange basis of the nodes at t: exact for the degree k - 1 interpolant with k points per piece
-    diff = t[:, :, None] - nodes[None, None, :]
-    basis = np.ones(t.shape + (k,))
-    for j in range(k):
-        others = [i for i in range(k) if i != j]
-        basis[:, :, j] = np.prod(diff[:, :, others], axis=2) / np.prod(nodes[j] - nodes[others])
-    piece = 0.5 * (te - ta) * h * np.einsum("q,pqj,pj->p", wg, basis, P[parent])
-    edges = np.asarray(edges, float)
-    mid = 0.5 * (cuts[1:] + cuts[:-1])
-    inside = (mid > edges[0]) & (mid < edges[-1])   # the pieces between the first and the last edge
-    which = np.searchsorted(edges, mid[inside], side="right") - 1
-    return np.bincount(which, weights=piece[inside], minlength=edges.size - 1)
+    return disc.integrate_between(sysm.model.contact(disc, x, p, S=disc.S)["pressure"], edges)
 
 
 def joint_side_forces(td: TorqueDrag, joint_length: float = JOINT_LENGTH) -> dict:

@@ -44,7 +44,8 @@ contact columns are
 the drilling ones of :class:`rodcont.drilling.TorqueDrag`'s profile: ``axial_force`` (at ``S = 0`` the hook
 load), ``torque`` ``M = -m`` (at ``S = 0`` the surface torque), ``pressure``, ``gap``, and ``in_contact`` 1 where
 the gap is below 1 % of the clearance. ``grid="mesh"`` samples the solution's own contact grid, on which a
-point contact (a pipe's end on the wall) is seen and the trapezoid rule gives the stored side force.
+point contact (a pipe's end on the wall) is seen (the stored side force is the collocation rule's, which a
+sampling of a contact narrower than a mesh interval approaches only as the grid refines).
 
 With ``f = w g`` per unit unstressed length the exported fields satisfy the
 Kirchhoff balance laws ``dF/ds + f = 0`` and ``dM/ds + (dr/ds) x F = 0``

@@ -1199,7 +1199,9 @@ class EulerianRod:
         unit ``S``, :meth:`rodcont.contact.Wall.pressure`), the axial force
         ``F.d3`` and the torque ``m`` there; ``zones`` (``(S_start, S_end, force)``,
         :func:`rodcont.contact.contact_zones`), ``min_gap`` and ``side_force``
-        (the integral of the pressure over the span).
+        (the integral of the pressure over the span). The forces (``side_force``, each zone's) are the
+        collocation rule's, whatever ``S``: the pressure at the collocation points, where alone the equations
+        load the rod, integrated as :meth:`rodcont.collocation.Collocation.integrate_between` does.
         """
         from .contact import contact_zones
         if self.wall is None:
@@ -1223,10 +1225,14 @@ class EulerianRod:
         pressure = self.wall.pressure(D1, D2, self.contact_scale, S)
         m, alpha, n, d3 = self._axial_quantities(S, z, p)
         axial = _dot(z[Jet.F], d3)
-        cum = np.concatenate([[0.0], np.cumsum(0.5 * (pressure[1:] + pressure[:-1]) * np.diff(S))])
-        out = dict(S=S, gap=gap, pressure=pressure, axial_force=axial, torque=m,
-                   zones=contact_zones(S, pressure, self.wall.contact_level * self.contact_scale),
-                   min_gap=float(gap.min()), side_force=float(cum[-1]))
+        # the wall's force as the collocation equations carry it: its pressure at the collocation points alone
+        # (a point contact narrower than an interval is misread by a sampling; test_the_total_side_force_...)
+        zc = disc.jets(x)
+        at_points = self.wall.pressure(zc[Jet.D1[0]], zc[Jet.D2[0]], self.contact_scale, disc.S)
+        zones = contact_zones(S, pressure, self.wall.contact_level * self.contact_scale,
+                              lambda edges: disc.integrate_between(at_points, edges))
+        out = dict(S=S, gap=gap, pressure=pressure, axial_force=axial, torque=m, zones=zones,
+                   min_gap=float(gap.min()), side_force=disc.integrate(at_points))
         if key is not None:
             self._last_contact = (key, out)
         return out
