@@ -22,3 +22,29 @@ def test_the_error_estimate_reads_lengths_and_torque_without_the_output_grids():
         p = system.params(value)
         o = system.model.outputs(system.disc, y, p)
         assert system.model.integral_outputs(system.disc, y, p) == (o["stretch"], o["l0"], o["torque"])
+
+
+def test_the_papers_rod_factorises_its_bordered_matrix_without_a_row_scaled_copy(monkeypatch):
+    """In the paper's units every row scale of the rod's bordered LU is 1 (RodSystem.equation_scale): no scaled copy
+    of the matrix is formed at any step (0.2 ms a step), and the LU is the raw matrix's (test_units.py). A rod whose
+    forces are in units of 2^20 still has its collocation rows scaled."""
+    from rodcont import linalg
+    from rodcont.rod import RodParameters
+    from rodcont.system import RodSystem
+
+    scaled = []
+
+    class Counting(linalg.LU):
+        def __init__(self, A, ordering="NATURAL", row_scale=None):
+            scaled.append(row_scale is not None)
+            super().__init__(A, ordering, row_scale)
+
+    monkeypatch.setattr(linalg, "LU", Counting)
+    rodcont.trace(1.0, max_steps=3)
+    assert scaled and not any(scaled)
+    s = RodSystem(RodParameters(EI=2.0 ** 20, GJ=0.75 * 2.0 ** 20, EA=255.0 * 2.0 ** 20, w=10.0 * 2.0 ** 20),
+                  gamma=1.0, N=15)
+    F, J, Fp = s.linearise(np.zeros(s.disc.size), 0.0)
+    scaled.clear()
+    s.bordered_solver(J, Fp, np.full(J.shape[0], 1e-4), 0.0)
+    assert scaled == [True]
