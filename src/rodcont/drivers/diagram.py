@@ -657,6 +657,7 @@ def _origin(phi, crit) -> str:
 def _copy_run(branch: Branch, rec: Recorder, up: Branch, callback) -> None:
     """The upward run ``up`` traced elsewhere, appended to ``branch`` as :func:`run` appends it there: its
     points (``callback`` sees each once it is stored), its end, its notes and counts."""
+    rec.deferred = True  # published once, when the branch is complete (or interrupted)
     try:
         for i in range(len(up)):
             rec.copy(up, i)
@@ -666,6 +667,8 @@ def _copy_run(branch: Branch, rec: Recorder, up: Branch, callback) -> None:
         branch.set_status(Status.INTERRUPTED, "interrupted")
         rec.sync()
         raise
+    finally:
+        rec.deferred = False
     branch.set_status(up.status, up.message)
     branch.unlocated += up.unlocated
     branch.missed_crossings += up.missed_crossings
@@ -741,8 +744,10 @@ def _open_branch(dg: Diagram, rod, N: int, k: int, origin: str, writer, down: Br
         branch.status_first, branch.message_first = Status.START, "start of the trace at phi_L = 0"
         return branch, rec
     rev = down.reversed()
+    rec.deferred = True  # published with the upward run's first special point
     for i in range(len(rev) - 1):
         rec.copy(rev, i, kind=Kind.REGULAR if rev.table["kind"][i] == Kind.START else None)
+    rec.deferred = False
     branch.status_first, branch.message_first = down.status, down.message
     # folds and branch points detected but not located, eigenvalue crossings missed: on either side
     branch.unlocated += down.unlocated
