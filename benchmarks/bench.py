@@ -160,7 +160,7 @@ def section_diagram(a, old):
     for line in text.splitlines():
         if line.strip()[:2].rstrip(":").isdigit() and "points" in line:
             print("   " + line.strip())
-    print(f"command line (its default: one branch after the other): wall {wall:.2f} s  target 5 s  "
+    print(f"command line (its default: the branches on a pool of the usable cores): wall {wall:.2f} s  target 5 s  "
           f"{verdict(wall <= 5.0)}   (CPU {cpu:.2f} s, all processes; {os.cpu_count()} cores)")
     for jobs in (1, os.cpu_count() or 1):
         cpu, wall, text = child([sys.executable, "-c", DIAGRAM_API, out, str(jobs)], env_for(SRC, "new"))

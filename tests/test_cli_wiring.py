@@ -3,6 +3,7 @@ the library gives reaching the user, columns of plot and export, drilling, Dask 
 
 from dataclasses import fields
 
+import numpy as np
 import pytest
 
 from conftest import run
@@ -349,6 +350,38 @@ def test_diagram_on_two_processes_finds_the_serial_folds(tmp_path, capsys):
             assert workers > 0 and cpu[jobs] >= workers - 0.02
     assert len(tables["1"]) == 3 and tables["1"] == tables["2"]  # the header and the folds at 13.1 and 21.02
     assert tables["1"][1].split()[:2] == ["0", "13.099993823047"]
+
+
+def test_diagram_by_default_runs_on_the_usable_cores_and_finds_the_folds_of_jobs_1(tmp_path, capsys):
+    """Without --jobs the branches go to a pool of one process per usable core (issue 24); its branches and
+    folds are those of --jobs 1, the folds to 1e-12 in every column (file and printed table alike)."""
+    import os
+
+    import h5py
+
+    from rodcont.drivers.diagram import usable_cores
+    printed, folds = {}, {}
+    for name, extra in (("default", []), ("serial", ["--jobs", "1"])):
+        before = os.times()
+        code, out, err = run(["diagram", "--gamma", "1", "--phi-max", "22", "--out", tmp_path / f"{name}.h5",
+                              "--quiet"] + extra, capsys)
+        after = os.times()
+        assert code == 0, err
+        workers = after.children_user + after.children_system - before.children_user - before.children_system
+        assert (workers > 1e-6) == (name == "default" and usable_cores() > 1)  # child CPU time: workers ran
+        lines = out.splitlines()
+        printed[name] = [ln for ln in lines if ln.startswith("branches ")] + \
+            lines[lines.index(next(ln for ln in lines if ln.startswith("branch "))):]
+        with h5py.File(tmp_path / f"{name}.h5", "r") as f:
+            folds[name] = {c: f["folds"][c][()] for c in f["folds"]}
+            folds[name]["groups"] = np.array(sorted(f["branches"]))
+    assert printed["default"] == printed["serial"] and printed["serial"][0].split() == ["branches", "3"]
+    assert folds["default"].keys() == folds["serial"].keys() and len(folds["serial"]["phi_L"]) == 2
+    for c, v in folds["serial"].items():
+        if v.dtype.kind == "f":
+            np.testing.assert_allclose(folds["default"][c], v, rtol=1e-12, atol=0, err_msg=c)
+        else:
+            np.testing.assert_array_equal(folds["default"][c], v, err_msg=c)
 
 
 @pytest.mark.parametrize("failure", [SystemError("gstrf was called with invalid arguments"),

@@ -503,3 +503,64 @@ def test_an_interrupted_diagram_is_marked_and_resume_finishes_it(tmp_path, capsy
     assert [len(b) for b in d.branches] == [len(b.branch) for b in whole.branches]
     code, o, e = run(["diagram", "--resume", out], capsys)
     assert one_line_error(code, o, e, "complete diagram"), e
+
+
+def test_a_diagram_interrupted_while_its_workers_trace_keeps_its_complete_branches(tmp_path, capsys):
+    """The default run traces on a process pool: an interrupt while it waits on its workers (the callback's
+    ``idle()``, where the command line takes Ctrl-C) leaves the branches kept so far in the file, marked
+    interrupted, and no worker running; --resume finishes it with the serial run's folds and points."""
+    import multiprocessing
+    whole = rodcont.diagram(1.0, phi_max=25, jobs=1)
+    out = str(tmp_path / "d.h5")
+
+    class StopAfterTheFirstBranch:
+        points = 0
+
+        def __call__(self, pt):
+            self.points += 1
+
+        def idle(self):  # the primary branch is kept once its points were seen
+            if self.points:
+                raise KeyboardInterrupt
+
+    stop = StopAfterTheFirstBranch()
+    with pytest.raises(KeyboardInterrupt):
+        rodcont.diagram(1.0, phi_max=25, out=out, callback=stop, jobs=2)
+    assert multiprocessing.active_children() == []
+    assert stop.points == len(whole.branches[0].branch)
+    d = rodcont.load_diagram(out)
+    assert d.attrs["status"] == "interrupted" and len(d.branches) == 1
+    assert str(d.branches[0].status) == str(whole.branches[0].branch.status)
+    code, o, e = run(["diagram", "--resume", out, "--quiet"], capsys)
+    assert code == 0, e
+    d = rodcont.load_diagram(out)
+    assert d.attrs["status"] == "complete" and len(d.branches) == len(whole.branches)
+    np.testing.assert_allclose(d.folds["phi_L"], whole.folds["phi_L"], rtol=0, atol=1e-9)
+    assert [len(b) for b in d.branches] == [len(b.branch) for b in whole.branches]
+
+
+def test_ctrl_c_stops_a_parallel_diagram_at_once_and_resume_finishes_it(tmp_path):
+    """SIGINT to `rodcont diagram` (its default: the branches on a process pool) once its first branch is
+    kept: exit 130, the --resume line, no traceback; the file holds that branch, marked interrupted, and
+    --resume finishes it with every branch."""
+    import signal
+    out = str(tmp_path / "d.h5")
+    p = subprocess.Popen(CLI + ["diagram", "--gamma", "1", "--out", out, "--jobs", "2"], env=ENV,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in p.stderr:  # an event, not a time: the primary branch's progress line
+        lines.append(line)
+        if line.lstrip().startswith("branch 0:"):
+            break
+    p.send_signal(signal.SIGINT)
+    stdout, err = p.communicate(timeout=300)
+    err = "".join(lines) + err
+    assert p.returncode == 130, err
+    assert "Traceback" not in err + stdout and f"rodcont diagram --resume {out}" in err
+    d = rodcont.load_diagram(out)
+    assert d.attrs["status"] == "interrupted" and 1 <= len(d.branches) < 5
+    r = subprocess.run(CLI + ["diagram", "--resume", out, "--quiet"], env=ENV, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    d = rodcont.load_diagram(out)
+    assert d.attrs["status"] == "complete" and len(d.branches) == 5

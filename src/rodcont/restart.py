@@ -376,7 +376,7 @@ def resume_diagram(path: str, *, changes: dict | None = None, options: dict | No
     meta = {"config": str(d.attrs.get("config", ""))} if "config" in d.attrs else None
     return diagram(None, rod, int(d.attrs["N"]), int(d.attrs["k"]), T=T, out=path, overwrite=True,
                    deflate_at=deflate, callback=callback, progress=progress, meta=meta,
-                   store_every=int(d.attrs.get("store_every", 1)), resumed=done, **stored)
+                   store_every=int(d.attrs.get("store_every", 1)), resumed=done, jobs=1, **stored)
 
 
 class _Frame:

@@ -74,8 +74,9 @@ def critical(gamma, phi_max, phi_min, N, k, w, EI, GJ, EA, L):
 @click.option("--out", default=None, type=click.Path(dir_okay=False), help="diagram file to write (HDF5)")
 @click.option("--resume", "resume_file", default=None, type=click.Path(dir_okay=False),
               help="finish the interrupted diagram in FILE.h5 (its complete branches kept), into FILE.h5 itself")
-@click.option("--jobs", type=click.IntRange(1, 1024), default=1, show_default=True,
-              help="branches traced at once on a pool of this many processes (the same branches as 1)")
+@click.option("--jobs", type=click.IntRange(1, 1024), default=None,
+              help="branches traced at once on a pool of this many processes (the same branches as 1, which "
+                   "traces them one after the other) [default: the usable cores]")
 @click.option("--overwrite", is_flag=True, help="replace --out if it exists")
 @click.option("--quiet", is_flag=True, help="no progress display")
 @rod_options
@@ -93,7 +94,7 @@ def diagram(**given):
     rod = make_rod(a.w, a.EI, a.GJ, a.EA, a.L)
     reference_curve(rod, "diagram")
     if a.resume_file is not None:
-        if a.jobs > 1:
+        if a.jobs is not None and a.jobs > 1:
             raise UserError("--resume finishes a diagram's branches one after the other: drop --jobs")
         run, out = _resume_diagram(a.resume_file, a.out, kw, a.deflate_at, a.N, a.k), a.resume_file
     else:

@@ -75,6 +75,11 @@ class Progress:
         if self.interrupts is not None:
             self.interrupts.check()
 
+    def idle(self):
+        """Called while worker processes trace (no point to show): an interrupt is taken at once."""
+        if self.interrupts is not None:
+            self.interrupts.check()
+
     def done(self):
         if self.tty and not self.quiet:
             click.echo("", err=True)

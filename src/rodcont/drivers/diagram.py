@@ -331,14 +331,17 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     diagram, in their order (:func:`rodcont.restart.resume_diagram`): each is kept where the run reaches its
     seed again, not traced. An interrupted run marks its file and the branch it was tracing ``interrupted``.
 
-    With ``jobs > 1`` (None: every core) or an ``executor=`` (any ``concurrent.futures`` one, e.g. a Dask
-    ``client.get_executor()``) the branches are traced at once (a process pool of ``jobs`` workers: the one
-    :mod:`rodcont.drivers.sweep` uses): the same branches, in the same order, as ``jobs=1``, which traces them
-    one after the other, the default (as does a resumed run, and a diagram inside a worker process: an
-    interrupt stops a serial run between points, test_an_interrupted_diagram_is_marked_and_resume_finishes_it).
+    The branches are traced at once, each seed's two directions as two jobs, on a process pool of ``jobs``
+    workers (the default None: the usable cores, :func:`usable_cores`; the pool :mod:`rodcont.drivers.sweep`
+    uses) or on ``executor=`` (any ``concurrent.futures`` one, e.g. a Dask ``client.get_executor()``): the same
+    branches, in the same order, as ``jobs=1``, which traces them one after the other (as does a resumed run,
+    and a diagram inside a worker process). A ``callback`` sees each branch's points as the serial run's
+    does, once its jobs are done; its ``idle()``, if it has one, is called while the workers trace (a
+    KeyboardInterrupt from either ends the run as between two points:
+    test_an_interrupted_diagram_is_marked_and_resume_finishes_it).
     """
     from .trace import _options
-    executor, jobs = options.pop("executor", None), options.pop("jobs", 1)
+    executor, jobs = options.pop("executor", None), options.pop("jobs", None)
     opts = _options(options, "diagram()")
     rod, T = _rod_and_tension(gamma, rod, T, l0)
     ends = None
@@ -488,14 +491,11 @@ def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback
     t0 = time.perf_counter()
     system = RodSystem(rod, T=T, N=N, k=k, ends=ends)
     x0 = system.model.initial_guess(system.disc, system.base[1])
-    db = _trace_both(system, x0, 0.0, bopts, "primary branch from the planar sag at phi_L = 0", writer, dg,
-                     callback, both=False)
+    db = _trace_both(system, x0, 0.0, bopts, _origin(None, crit), writer, dg, callback, both=False)
     db.time = time.perf_counter() - t0
     _keep(dg, db, note)
     for phi in seeds:
-        lo = max(c for c in crit if c < phi)
-        hi = min(c for c in crit if c > phi)
-        origin = f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}"
+        origin = _origin(phi, crit)
         t0 = time.perf_counter()
         try:
             sysw, xs = straight_seed(rod, T, phi, N, k, ends=ends)
@@ -514,25 +514,35 @@ def _trace_seeds(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback
         _keep(dg, db, note)
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity mask where the system has one, else every core): a
+    pool's default size."""
+    import os
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def _parallel(jobs, executor, n_jobs: int) -> bool:
     """Whether the branches go to an executor: one was given, or more than one job and core, outside a worker
     process (a sweep of diagrams is already parallel over Gamma)."""
     import multiprocessing
-    import os
     if executor is not None:
         return True
     if jobs is not None:
         jobs = check_number("jobs", jobs, integer=True)
         if jobs < 1:
             raise ValueError(f"jobs must be >= 1, got {jobs}")
-    workers = jobs or os.cpu_count() or 1
+    workers = jobs or usable_cores()
     return n_jobs > 1 and workers > 1 and multiprocessing.parent_process() is None
 
 
-def _branch_job(rod, T, N, k, phi, bopts, ends, gamma, attrs, origin) -> dict:
-    """One branch of a diagram traced without a file (a worker's job): what :func:`_trace_seeds` does for the
-    primary branch (``phi`` None) or for the seed at ``phi``; the branch, its seed's solution and mesh (for the
-    test against the branches kept before it), its time and the warnings it raised."""
+def _branch_job(rod, T, N, k, phi, bopts, ends, gamma, attrs, direction: int = 1) -> dict:
+    """One direction of one branch of a diagram, traced without a file (a worker's job): the primary branch
+    (``phi`` None) from the planar sag, or the seed at ``phi`` traced ``direction`` (-1 down, 1 up) as
+    :func:`_trace_both` traces it; the run, its seed's solution and mesh (for the test against the branches
+    kept before it), its time and the warnings it raised."""
     import warnings
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
@@ -547,77 +557,132 @@ def _branch_job(rod, T, N, k, phi, bopts, ends, gamma, attrs, origin) -> dict:
                 return dict(error=str(exc), warnings=[])
             system, phi0 = RodSystem(rod, T=T, N=N, k=k, breakpoints=sysw.disc.breakpoints, ends=ends), phi
         dg = Diagram(gamma=gamma, T=T, rod=rod, critical=[], attrs=attrs)
-        db = _trace_both(system, x0, phi0, bopts, origin, None, dg, None, both=phi is not None)
-    kinds = [str(v) for v in db.branch.table["kind"]]  # the upward trace starts at the (only) start point
-    up = kinds.index(str(Kind.START)) if str(Kind.START) in kinds else 0
-    return dict(error=None, branch=db.branch, ends=db.ends, x=x0, breakpoints=system.disc.breakpoints, up=up,
+        b = _trace_direction(system, x0, phi0, bopts, dg, direction)
+    return dict(error=None, run=b, N=system.disc.N, x=x0, breakpoints=system.disc.breakpoints,
                 time=time.perf_counter() - t0, warnings=[(str(w.message), w.category) for w in caught])
 
 
 def _trace_seeds_parallel(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer, callback, note, ends, executor,
                           jobs) -> None:
-    """:func:`_trace_seeds` with every branch traced at once on ``executor`` (default a process pool); each is
-    kept or skipped in the serial order, by the same tests, and written to the file when it is kept."""
-    import warnings
-    from concurrent.futures import ProcessPoolExecutor
-
-    from .sweep import _worker_init
-    origins = ["primary branch from the planar sag at phi_L = 0"]
-    for phi in seeds:
-        lo, hi = max(c for c in crit if c < phi), min(c for c in crit if c > phi)
-        origins.append(f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}")
+    """:func:`_trace_seeds` with every branch traced at once on ``executor`` (default a process pool), a
+    seed's two directions as two jobs (nine jobs of 0.1 to 2.7 s for the five branches of Gamma = 1: two
+    workers end within 0.2 s of each other, where five whole branches of 1 to 5 s left one idle); each branch
+    is kept or skipped in the serial order, by the same tests, and written to the file when it is kept."""
     own = executor is None
     if own:
-        import os
-        executor = ProcessPoolExecutor(max_workers=min(jobs or os.cpu_count() or 1, len(origins)),
+        from concurrent.futures import ProcessPoolExecutor
+
+        from .sweep import _worker_init
+        executor = ProcessPoolExecutor(max_workers=min(jobs or usable_cores(), 2 * len(seeds) + 1),
                                        initializer=_worker_init)
-    finished = False
+    finished, futures = False, []
     try:
-        futures = [executor.submit(_branch_job, rod, T, N, k, phi, bopts, ends, dg.gamma, dg.attrs, origin)
-                   for phi, origin in zip([None] + list(seeds), origins)]
-        for phi, origin, future in zip([None] + list(seeds), origins, futures):
-            r = future.result()
-            for message, category in r["warnings"]:
-                warnings.warn(message, category, stacklevel=3)
-            if r["error"] is not None:
-                dg.skipped.append((origin, r["error"]))
-                note(f"  skipped {origin}: {r['error']}")
-                continue
-            if phi is not None:
-                system = RodSystem(rod, T=T, N=N, k=k, breakpoints=r["breakpoints"], ends=ends)
-                on = _on_known_branch(dg, system, r["x"], phi)
-                if on is not None:
-                    dg.skipped.append((origin, f"lies on branch {on}"))
-                    note(f"  {origin}: lies on branch {on}, not traced again")
-                    continue
-            db = DiagramBranch(r["branch"], origin, r["ends"], math.nan if phi is None else phi, r["time"])
-            _write_branch(writer, dg, db, callback, r["up"])
-            _keep(dg, db, note)
+        args = (rod, T, N, k)
+        futures = [(None, None, executor.submit(_branch_job, *args, None, bopts, ends, dg.gamma, dg.attrs, 1))]
+        futures += [(phi, executor.submit(_branch_job, *args, phi, bopts, ends, dg.gamma, dg.attrs, -1),
+                     executor.submit(_branch_job, *args, phi, bopts, ends, dg.gamma, dg.attrs, 1)) for phi in seeds]
+        for phi, down, up in futures:
+            _keep_traced(dg, rod, T, k, phi, crit, _result(down, callback), _result(up, callback), writer,
+                         callback, note, ends)
         finished = True
     finally:
         if own:
-            executor.shutdown(wait=finished, cancel_futures=True)
+            if not finished:  # an interrupt or an error: the jobs still running are not waited for
+                _stop_workers(executor)
+            executor.shutdown(wait=True, cancel_futures=True)
+        elif not finished:
+            for future in (f for job in futures for f in job[1:] if f is not None):
+                future.cancel()
 
 
-def _write_branch(writer, dg: Diagram, db: DiagramBranch, callback, up: int) -> None:
-    """A branch traced elsewhere, copied into the file as branch ``len(dg.branches)`` (as a resumed one is);
-    ``callback`` sees the points of its upward trace, from the ``up``-th on, as the serial run's does."""
-    b = db.branch
-    if writer is not None:
-        j = len(dg.branches)
-        group = writer.group(f"branches/{j}", attrs=dict(origin=db.origin), extra_columns=_extra_columns(dg))
-        rec = Recorder(Branch(dg.gamma, dg.rod, b.N, b.k, attrs=b.attrs), writer, group)
-        for i in range(len(b)):
-            rec.copy(b, i)
-        _branch_attrs(writer, j, b)
+def _result(future, callback):
+    """A job's result (None for no job); the callback's ``idle()`` called before it is awaited and every 0.2 s
+    while it runs (where a serial run would have called the callback at its points)."""
+    if future is None:
+        return None
+    from concurrent.futures import TimeoutError as Pending
+    idle = getattr(callback, "idle", None)
+    while idle is not None:
+        idle()
+        try:
+            return future.result(timeout=0.2)
+        except Pending:
+            pass
+    return future.result()
+
+
+def _stop_workers(executor) -> None:
+    """Kill a process pool's workers (SIGKILL: a worker forked inside the command line's interrupt handler
+    takes SIGTERM as a request to stop at its next point, which it has no callback to see)."""
+    for process in list(getattr(executor, "_processes", {}).values()):
+        if process.is_alive():
+            process.kill()
+
+
+def _keep_traced(dg: Diagram, rod, T, k, phi, crit, down, up, writer, callback, note, ends) -> None:
+    """A branch traced by the workers (``down`` None for the primary branch), kept or skipped as
+    :func:`_trace_seeds` keeps or skips it; its jobs' warnings raised here, in the serial order."""
+    import warnings
+    origin = _origin(phi, crit)
+    for r in (down, up):
+        for message, category in (r["warnings"] if r is not None else ()):
+            warnings.warn(message, category, stacklevel=4)
+    if up["error"] is not None:
+        dg.skipped.append((origin, up["error"]))
+        note(f"  skipped {origin}: {up['error']}")
+        return
+    if phi is not None:
+        system = RodSystem(rod, T=T, N=up["N"], k=k, breakpoints=up["breakpoints"], ends=ends)
+        on = _on_known_branch(dg, system, up["x"], phi)
+        if on is not None:
+            dg.skipped.append((origin, f"lies on branch {on}"))
+            note(f"  {origin}: lies on branch {on}, not traced again")
+            return
+    branch, rec = _open_branch(dg, rod, up["N"], k, origin, writer, None if down is None else down["run"])
+    _copy_run(branch, rec, up["run"], callback)
+    db = _close_branch(dg, branch, rec, writer, origin)
+    db.seed_phi, db.time = math.nan if phi is None else phi, up["time"] + (down["time"] if down else 0.0)
+    _keep(dg, db, note)
+
+
+def _origin(phi, crit) -> str:
+    """How a branch was started: the primary branch (``phi`` None), or the seed at ``phi`` between two
+    critical twists."""
+    if phi is None:
+        return "primary branch from the planar sag at phi_L = 0"
+    lo, hi = max(c for c in crit if c < phi), min(c for c in crit if c > phi)
+    return f"seed at phi_L = {phi:.6g}, between the critical twists {lo:.6g} and {hi:.6g}"
+
+
+def _copy_run(branch: Branch, rec: Recorder, up: Branch, callback) -> None:
+    """The upward run ``up`` traced elsewhere, appended to ``branch`` as :func:`run` appends it there: its
+    points (``callback`` sees each once it is stored), its end, its notes and counts."""
+    rec.deferred = True  # published once, when the branch is complete (or interrupted)
+    try:
+        for i in range(len(up)):
+            rec.copy(up, i)
+            if callback is not None:
+                callback(_stored_point(branch, len(branch) - 1))
+    except KeyboardInterrupt:  # as the engine ends an interrupted run
+        branch.set_status(Status.INTERRUPTED, "interrupted")
         rec.sync()
-        writer.flush()
-    if callback is not None:
-        for i in range(up, len(b)):
-            row = b.row_at(i)
-            t = np.asarray(b.tangents[i], float)
-            callback(Point(x=b.coefficients[i], p=float(row["phi_L"]), tx=t[:-1], tp=float(t[-1]) if t.size else 0.0,
-                           kind=row["kind"], located=bool(row["located"]), data=row, message=b.messages.get(i, "")))
+        raise
+    finally:
+        rec.deferred = False
+    branch.set_status(up.status, up.message)
+    branch.unlocated += up.unlocated
+    branch.missed_crossings += up.missed_crossings
+    branch.settings.update(up.settings)
+    branch.steps, branch.newton_iterations = branch.steps + up.steps, branch.newton_iterations + up.newton_iterations
+    branch.remeshes, branch.elapsed = branch.remeshes + up.remeshes, branch.elapsed + up.elapsed
+
+
+def _stored_point(b: Branch, i: int) -> Point:
+    """Point ``i`` of a branch as the tracker handed it over (what a callback reads)."""
+    row = b.row_at(i)
+    t = np.asarray(b.tangents[i], float)
+    return Point(x=b.coefficients[i], p=float(row["phi_L"]), tx=t[:-1], tp=float(t[-1]) if t.size else 0.0,
+                 kind=row["kind"], located=bool(row["located"]), data=row, message=b.messages.get(i, ""))
 
 
 def _trace_deflated(dg: Diagram, rod, T, phi, N, k, opts, bopts, writer, callback, note) -> None:
@@ -652,29 +717,48 @@ def _trace_both(system: RodSystem, x0, phi0: float, opts: TraceOptions, origin: 
     done = _resumed_branch(dg, origin, writer)
     if done is not None:
         return done
+    down = _trace_direction(system, x0, phi0, opts, dg, -1) if both else None
+    branch, rec = _open_branch(dg, system.rod, system.disc.N, system.disc.k, origin, writer, down)
+    run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=1)), branch=branch, recorder=rec,
+        callback=callback)
+    return _close_branch(dg, branch, rec, writer, origin)
+
+
+def _trace_direction(system: RodSystem, x0, phi0: float, opts: TraceOptions, dg: Diagram, direction: int) -> Branch:
+    """One run from the seed (``direction`` -1: down, 1: up), into a branch of its own."""
+    b = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
+    return run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=direction)), branch=b)
+
+
+def _open_branch(dg: Diagram, rod, N: int, k: int, origin: str, writer, down: Branch | None):
+    """Branch ``len(dg.branches)`` begun, in memory and in the file (``dg.tracing``: an interrupt marks it):
+    the downward run ``down`` reversed without the seed (the upward run starts there again), or for the
+    primary branch (``down`` None) nothing. Returns ``(branch, recorder)``."""
     j = len(dg.branches)
-    branch = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
+    branch = Branch(dg.gamma, rod, N, k, attrs=dg.attrs)
     dg.tracing = (j, branch)
     group = writer.group(f"branches/{j}", attrs=dict(origin=origin), extra_columns=_extra_columns(dg)) \
         if writer is not None else None
     rec = Recorder(branch, writer, group)
-    if both:
-        down = Branch(dg.gamma, system.rod, system.disc.N, system.disc.k, attrs=dg.attrs)
-        run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=-1)), branch=down)
-        rev = down.reversed()
-        # the reversed lower part, then the upper part traced from the seed again
-        for i in range(len(rev) - 1):
-            rec.copy(rev, i, kind=Kind.REGULAR if rev.table["kind"][i] == Kind.START else None)
-        branch.status_first, branch.message_first = down.status, down.message
-        # folds and branch points detected but not located, eigenvalue crossings missed: on either side
-        branch.unlocated += down.unlocated
-        branch.missed_crossings += down.missed_crossings
-    else:
+    if down is None:
         branch.status_first, branch.message_first = Status.START, "start of the trace at phi_L = 0"
-    run(system, x0, phi0, TraceOptions(**dict(opts.as_dict(), direction=1)), branch=branch, recorder=rec,
-        callback=callback)
+        return branch, rec
+    rev = down.reversed()
+    rec.deferred = True  # published with the upward run's first special point
+    for i in range(len(rev) - 1):
+        rec.copy(rev, i, kind=Kind.REGULAR if rev.table["kind"][i] == Kind.START else None)
+    rec.deferred = False
+    branch.status_first, branch.message_first = down.status, down.message
+    # folds and branch points detected but not located, eigenvalue crossings missed: on either side
+    branch.unlocated += down.unlocated
+    branch.missed_crossings += down.missed_crossings
+    return branch, rec
+
+
+def _close_branch(dg: Diagram, branch: Branch, rec: Recorder, writer, origin: str) -> DiagramBranch:
+    """The branch being traced, complete: its ends and notes written to its group."""
     if writer is not None:
-        _branch_attrs(writer, j, branch)
+        _branch_attrs(writer, dg.tracing[0], branch)
         rec.sync()
         writer.flush()
     dg.tracing = None  # complete: an interrupt from here on leaves it as it is
