@@ -57,9 +57,9 @@ def test_an_exported_trip_point_is_the_stored_equilibrium_at_its_depth(trip_file
     solution can differ) and the exported pressure its law (on a uniform grid a point contact of a millimetre, the
     collar's top on the wall at 290 m, is stepped over, hence the mesh grid); Newton on the rebuilt system does
     not move the stored solution (the friction, the sections, the loads and the law are the solved ones); the gap
-    is above minus the penetration guard times a clearance computed here from the hole and the pipes; in_contact is the gap below 1 % of it, so it is 1
-    exactly where the pressure is above its level off the wall in each pipe's hole. The VTK file carries the same
-    axial force."""
+    is above minus the penetration guard times a clearance computed here from the hole and the pipes; in_contact
+    is the gap below 1 % of it, so it is 1 exactly where the pressure is above its level off the wall in each
+    pipe's hole. The VTK file carries the same axial force."""
     data = load_branch(trip_file)
     i = data.resolve(point)
     depth = float(data.branch["depth"][i])
