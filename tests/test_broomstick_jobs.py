@@ -47,3 +47,16 @@ def test_broomstick_submits_one_job_a_depth_and_keeps_each_curves_answers():
         for key in b.data:
             np.testing.assert_array_equal(b.data[key][:, i, 0], whole[key], err_msg=f"{op} {key}")
     assert set(b.elapsed) == {(op, 0.4) for op in ops} and all(v > 0 for v in b.elapsed.values())
+
+
+def test_soft_string_evaluates_the_path_once_an_interval(monkeypatch):
+    """The soft string's Runge-Kutta steps read the well path from one jet per interval between its cuts (the
+    survey's arcs here: 2 in the S well cut at 1200 m), not one per stage (4 a step, 4800 at 1 m steps)."""
+    from rodcont import curves, drilling
+    well = Well(np.array([[0.0, 0.0, 0.0], [500.0, 0.0, 0.0], [1500.0, 60.0, 30.0]]), hole_diameter=0.3,
+                friction=0.3)
+    calls = []
+    jet = curves.MinimumCurvatureWell.jet
+    monkeypatch.setattr(curves.MinimumCurvatureWell, "jet", lambda self, S: calls.append(np.size(S)) or jet(self, S))
+    drilling.soft_string(well, STRING, 1200.0, "rotate", mu=0.3)
+    assert len(calls) == 2 and sum(calls) == 3 * 1200
