@@ -600,27 +600,32 @@ def soft_string(well: Well, string: DrillString, depth: float, operation: Operat
     g = np.array([0.0, 0.0, -1.0])
     y = np.array([-float(wob), float(bit_torque)])
 
-    def rhs(S, y, w, r, m):
-        j = curve.jet(np.array([S]))
-        t, kn = j.K[2][:, 0], j.k[0, 0, 0] * j.K[0][:, 0] + j.k[1, 0, 0] * j.K[1][:, 0]
+    def rhs(t, kn, y, w, r, m, s_a, s_r):
         gt = float(g @ t)
         N = float(np.linalg.norm(y[0] * kn + w * (g - gt * t)))
-        s_a, s_r = op.split(r)
         return np.array([-w * gt - s_a * m * N, -s_r * m * N * r])
     for a, b in zip(edges[::-1][1:], edges[::-1][:-1]):
         mid = 0.5 * (a + b)
         w, r = float(_value_at(placed.weights, mid)), float(_value_at(placed.radius, mid))
         m = float(_value_at(mu if not isinstance(mu, (int, float)) else float(mu), mid))
+        s_a, s_r = op.split(r)
         n = max(1, math.ceil((b - a) / step))
         h = (b - a) / n
-        for i in range(n):  # upward: S decreases by h
-            S = b - i * h
-            k1 = rhs(S, y, w, r, m)
-            k2 = rhs(S - h / 2, y - h / 2 * k1, w, r, m)
-            k3 = rhs(S - h / 2, y - h / 2 * k2, w, r, m)
-            k4 = rhs(S - h, y - h * k3, w, r, m)
+        S = np.array([b - i * h for i in range(n)])  # upward: S decreases by h
+        t, kn = _path_vectors(curve, np.concatenate([S, S - h / 2, S - h]))  # one jet for the interval's steps
+        for i in range(n):
+            k1 = rhs(t[:, i], kn[:, i], y, w, r, m, s_a, s_r)
+            k2 = rhs(t[:, n + i], kn[:, n + i], y - h / 2 * k1, w, r, m, s_a, s_r)
+            k3 = rhs(t[:, n + i], kn[:, n + i], y - h / 2 * k2, w, r, m, s_a, s_r)
+            k4 = rhs(t[:, 2 * n + i], kn[:, 2 * n + i], y - h * k3, w, r, m, s_a, s_r)
             y = y - h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return float(y[0]), float(y[1])
+
+
+def _path_vectors(curve, S) -> tuple:
+    """``(t, kappa n)`` of ``curve`` at the arclengths ``S``, arrays ``(3, S.size)``."""
+    j = curve.jet(np.asarray(S, float))
+    return j.K[2], j.k[0, 0] * j.K[0] + j.k[1, 0] * j.K[1]
 
 
 # --------------------------------------------------------------------------
