@@ -495,14 +495,20 @@ def test_an_interrupted_diagram_is_marked_and_resume_finishes_it(tmp_path, capsy
     code, o, e = run(["diagram", "--resume", out, "--ds-max", "0.1"], capsys)
     assert one_line_error(code, o, e, "--ds-max differs from the diagram file's"), e
     assert digest(out) == before
+    _assert_resume_finishes_as_the_whole(out, whole, capsys)
+    code, o, e = run(["diagram", "--resume", out], capsys)
+    assert one_line_error(code, o, e, "complete diagram"), e
+
+
+def _assert_resume_finishes_as_the_whole(out, whole, capsys) -> None:
+    """``diagram --resume OUT`` completes the interrupted file with the uninterrupted run's folds (1e-9) and
+    point counts."""
     code, o, e = run(["diagram", "--resume", out, "--quiet"], capsys)
     assert code == 0, e
     d = rodcont.load_diagram(out)
     assert d.attrs["status"] == "complete" and len(d.branches) == len(whole.branches)
     np.testing.assert_allclose(d.folds["phi_L"], whole.folds["phi_L"], rtol=0, atol=1e-9)
     assert [len(b) for b in d.branches] == [len(b.branch) for b in whole.branches]
-    code, o, e = run(["diagram", "--resume", out], capsys)
-    assert one_line_error(code, o, e, "complete diagram"), e
 
 
 def test_a_diagram_interrupted_while_its_workers_trace_keeps_its_complete_branches(tmp_path, capsys):
@@ -531,12 +537,7 @@ def test_a_diagram_interrupted_while_its_workers_trace_keeps_its_complete_branch
     d = rodcont.load_diagram(out)
     assert d.attrs["status"] == "interrupted" and len(d.branches) == 1
     assert str(d.branches[0].status) == str(whole.branches[0].branch.status)
-    code, o, e = run(["diagram", "--resume", out, "--quiet"], capsys)
-    assert code == 0, e
-    d = rodcont.load_diagram(out)
-    assert d.attrs["status"] == "complete" and len(d.branches) == len(whole.branches)
-    np.testing.assert_allclose(d.folds["phi_L"], whole.folds["phi_L"], rtol=0, atol=1e-9)
-    assert [len(b) for b in d.branches] == [len(b.branch) for b in whole.branches]
+    _assert_resume_finishes_as_the_whole(out, whole, capsys)
 
 
 def test_ctrl_c_stops_a_parallel_diagram_at_once_and_resume_finishes_it(tmp_path):
