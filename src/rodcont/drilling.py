@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -385,14 +386,17 @@ def settle(sysm, x, tol: float = 1e-10):
     return settle_in_conduit(sysm, x, sysm.base, tol, factor=10.0)
 
 
-def _estimate(sysm, x) -> tuple:
-    """``(error, side force's error, penetration)`` of a solution (:class:`rodcont.mesh.ErrorEstimator`; the
+def _estimate(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3) -> tuple:
+    """``(error, side force's error, penetration)`` of a solution (:class:`rodcont.mesh.ErrorEstimator`, the
+    richer problem solved to convergence where its one step puts either estimate above its guard; the
     penetration as :func:`rodcont.contact.penetration`, but not at a clearance's step: there the law is not
     collocated, the larger pipe's end carries a point contact and the spline's value at the breakpoint leans into
     the wall while the law holds on each side; refining, not a stiffer law, resolves it)."""
     from .mesh import ErrorEstimator
     est = ErrorEstimator(sysm, watch=True)
     err = est.estimate(x, sysm.value())
+    if _ratio(err, est.watched.get("side_force", math.nan), max_error, max_side_force_error) > 1.0:
+        err = est.converged_estimate()
     con = sysm.model.contact(sysm.disc, x, sysm.base)
     S, wall = con["S"], sysm.model.wall
     keep = np.ones(S.size, bool)
@@ -403,6 +407,11 @@ def _estimate(sysm, x) -> tuple:
     return err, est.watched.get("side_force", math.nan), pen
 
 
+def _ratio(err, sf, max_error, max_side_force_error) -> float:
+    """The larger estimate relative to its guard (a side force's NaN where there is no wall)."""
+    return max(err / max_error, 0.0 if math.isnan(sf) else sf / max_side_force_error)
+
+
 def adapt(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3, N_max: int = 4000,
           tol: float = 1e-10):
     """Refine the mesh (and stiffen the contact law past :data:`rodcont.contact.MAX_PENETRATION`) until the
@@ -411,19 +420,30 @@ def adapt(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3, 
     from .drivers.solve import stiffen_contact
     from .mesh import adapted_mesh
     for _ in range(8):
-        err, sf, pen = _estimate(sysm, x)
+        err, sf, pen = _estimate(sysm, x, max_error, max_side_force_error)
         if pen > MAX_PENETRATION:
             x = stiffen_contact(sysm, x, sysm.base, sysm.model.contact_scale * pen / (MAX_PENETRATION / 10), tol)
             continue
-        ratio = max(err / max_error, 0.0 if math.isnan(sf) else sf / max_side_force_error)
+        ratio = _ratio(err, sf, max_error, max_side_force_error)
         if ratio <= 1.0 or sysm.disc.N >= N_max:
-            return sysm, x, err, sf
+            return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
         b = adapted_mesh(sysm.disc.breakpoints, sysm.interval_defect(x, sysm.value()), sysm.disc.k,
                          ratio * max_error, max_error / 4, N_max=N_max)
         new = sysm.with_mesh(sysm.conform(b))
         r = new.disc.newton(new.disc.transfer(x, sysm.disc), new.base, tol=tol)
         sysm, x = new, (r.x if r.converged else settle(new, new.model.initial_guess(new.disc, new.value()), tol))
-    err, sf, _ = _estimate(sysm, x)
+    err, sf, _ = _estimate(sysm, x, max_error, max_side_force_error)
+    ratio = _ratio(err, sf, max_error, max_side_force_error)
+    return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
+
+
+def _said(sysm, x, err, sf, ratio, max_error, max_side_force_error) -> tuple:
+    """``(system, x, error, side force's error)``, with a ``RuntimeWarning`` where an estimate is above its guard
+    (the mesh at its cap ``N_max`` or out of rounds)."""
+    if ratio > 1.0:
+        warnings.warn(f"the equilibrium at N = {sysm.disc.N} is above its guard: estimated error {err:.2g} "
+                      f"(max_error {max_error:g}), side force's {sf:.2g} (max {max_side_force_error:g}); "
+                      f"raise N_max", RuntimeWarning, stacklevel=3)
     return sysm, x, err, sf
 
 
