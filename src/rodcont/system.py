@@ -141,6 +141,8 @@ class RodSystem:
         from .loads import Friction
         # a drill string (friction on the wall): its outputs gain the hook load and the surface torque
         self.drilling = any(isinstance(q, Friction) for q in (loads or ()))
+        # friction that turns the string: its twist winds up tens of radians (rodcont.drilling)
+        self.friction_torque = any(isinstance(q, Friction) and q.operation.rotating for q in loads or ())
         self.base = self.model.params(phi_L, T=T)
         self.param = param
         self.index = self.model.param_names.index("T" if param == "gamma" else param)
@@ -238,13 +240,13 @@ class RodSystem:
 
     def error_quantities(self, x, value):
         """What the error estimate compares, with its scales: the stretch, ``l0`` (scale ``L``), the torque
-        (scale ``max(|torque|, EI/L)``) and the parameters solved for (``phi_L`` by one radian, ``T`` by the
-        arclength's force scale)."""
+        (scale ``max(|torque|, EI/L)``) and the parameters solved for (``phi_L`` by one radian, or by its own size
+        past one under friction that turns the string, ``T`` by the arclength's force scale)."""
         p = self.params(value)
         stretch, l0, torque = self.model.integral_outputs(self.disc, x, p)
         L = self.rod.L
         pf = self.disc.full_params(x, p)
-        freed = [(float(pf[self.model.param_names.index(q)]), self._free_unit(q)) for q in self.freed]
+        freed = [(v, self._free_unit(q, v)) for q in self.freed for v in [float(pf[self.model.param_names.index(q)])]]
         return ((stretch, l0, torque, *(v for v, _ in freed)),
                 (1.0, L, max(abs(torque), float(p[3]) / L), *(u for _, u in freed)))
 
@@ -339,9 +341,11 @@ class RodSystem:
               "torque": EI / L, "l0": L}[self.param]
         return sx, sp
 
-    def _free_unit(self, name: str) -> float:
-        """The scale of a freed parameter: ``phi_L`` a radian, ``T`` the forces', a phase condition's weight theirs
-        per length."""
+    def _free_unit(self, name: str, value: float = 0.0) -> float:
+        """The scale of a freed parameter: ``phi_L`` a radian (under friction that turns the string, the larger of
+        a radian and its own size), ``T`` the forces', a phase condition's weight theirs per length."""
+        if name == "phi_L" and self.friction_torque:
+            return max(1.0, abs(value))
         return {"phi_L": 1.0, "T": self._force_scale(), "w": self._force_scale() / self.rod.L}[name]
 
     def _force_scale(self) -> float:
