@@ -137,3 +137,28 @@ def test_solve_prints_the_side_force_per_joint_and_writes_the_joints(tmp_path):
              "--joints", str(bad))
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--joint-length" in r.stderr
     assert not bad.exists()
+
+
+def test_solve_of_a_string_reads_its_guard_and_cap_and_refuses_the_rods_options(tmp_path):
+    """`solve --string` read neither --max-error nor --N-max (a guard of 1e-12 returned 2.7e-9 on N 1016, rc 0,
+    silent) and dropped --EI: the guard and the cap now reach the solve, which says where it stops above its guard
+    (the mesh at its cap); a rod's own option is refused in one line. The echoed problem runs again as --config."""
+    common = ("solve", "--conduit", WELL, "--string", STRING, "--depth", "500", "--operation", "rotate")
+    r = _run(*common, "--N-max", "1100", "--max-error", "1e-12")
+    assert r.returncode == 0, r.stderr
+    out = dict(line.split(" ", 1) for line in r.stdout.splitlines() if not line.startswith("#"))
+    assert int(out["N"]) <= 1110 and float(out["error"]) > 1e-12
+    assert "above its guard" in r.stderr and "max_error 1e-12" in r.stderr
+    assert "#   N_max = 1100" in r.stdout and "#   max_error = 1e-12" in r.stdout
+    for bad in (["--EI", "3"], ["--uniform"]):
+        r = _run(*common, *bad, "--out", str(tmp_path / "p.h5"))
+        assert r.returncode == 2 and r.stderr.startswith("rodcont: error:") and r.stderr.count("\n") == 1, r.stderr
+        assert f"{bad[0]} is not an option of a drill string" in r.stderr
+        assert not (tmp_path / "p.h5").exists()
+    r = _run(*common, "--max-error", "1e-7")
+    conf = tmp_path / "as_run.toml"
+    conf.write_text("\n".join(line[4:] for line in r.stdout.splitlines() if line.startswith("#   ")))
+    again = _run("solve", "--config", str(conf))
+    assert again.returncode == 0, again.stderr
+    assert [ln for ln in again.stdout.splitlines() if not ln.startswith("#")] == \
+        [ln for ln in r.stdout.splitlines() if not ln.startswith("#")]

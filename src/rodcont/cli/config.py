@@ -164,6 +164,9 @@ def _drop_drilling_or_rod(params: dict) -> None:
     trip = "prange" in params
     keep = set(DRILLING_KEYS) - {"depth", "joints"} | set(TRIP_KEYS) if trip else None
     rod = CONFIG_SECTIONS["rod"] + CONFIG_SECTIONS["loads"] + CONFIG_SECTIONS["mesh"] + ("load_step", "max_error")
+    if not trip:  # solve --string reads its guard and cap, and a --N or --k given (run_drilling_solve)
+        from .common import explicit
+        rod = tuple(n for n in rod if n not in {"max_error", "N_max", *explicit("N", "k")})
     for name in list(params):
         if (keep is not None and name not in keep and name not in _CONFIG_SKIP) or name in rod:
             params.pop(name, None)

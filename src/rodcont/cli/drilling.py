@@ -108,7 +108,9 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
         r = torque_and_drag(well, string, depth, op, mu=_check("friction", values.get("friction"), nonnegative=True),
                             wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
                             bit_torque=values.get("bit_torque") or 0.0,
-                            trip_speed=values.get("trip_speed"), rpm=values.get("rpm"))
+                            trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
+                            **{key: values[key] for key in ("max_error", "N_max", "N", "k")
+                               if values.get(key) is not None})
     except (DrillingError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None
     except ConvergenceError as exc:

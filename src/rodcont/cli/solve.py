@@ -72,7 +72,13 @@ def _solve_string(a) -> None:
                             f"weight, the operation, --wob and --bit-torque; drop --{name}")
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("--T is not an option of a drill string (--string): drop it")
-    run_drilling_solve(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, overwrite=a.overwrite, out=a.out)
+    said = explicit("w", "EI", "GJ", "EA", "L", "uniform")
+    if said:  # the string file and the survey give them (test_drilling_cli: they were ignored)
+        raise UserError(f"--{said[0]} is not an option of a drill string (--string): its sections give w, EI, GJ "
+                        f"and EA, --depth its length; drop --{said[0]} (cap the mesh with --N-max)")
+    values = {key: getattr(a, key) for key in DRILLING_KEYS}
+    values.update(max_error=a.max_error, N_max=a.N_max, N=a.N if explicit("N") else None, k=a.k)
+    run_drilling_solve(a.conduit, values, overwrite=a.overwrite, out=a.out)
 
 
 def _solve_rod(gamma, phi, torque, l0, load_step, conduit, max_error, uniform, N_max, out, overwrite, N, k, w, EI, GJ,
