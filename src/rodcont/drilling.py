@@ -492,23 +492,56 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
 
 
+#: the contact law's smoothing the load is raised under (the wall's own where stiffer): under eps = 1e-5 each step
+#: of the 2875 m slack-off took ~27 Newton iterations damped to 1/8-1/32 (the tension's step, ~3e4 N, moves the
+#: contacts across the stiff law), under 1e-3 five; the law is then stiffened at the full load by factors of 10
+RAMP_EPS = 1e-3
+
+
 def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step: float = 0.25):
     """``(system, x)`` with the friction factor and the bit's force and torque raised together from 0 to theirs,
     Newton from the previous step's solution, the step halved where Newton fails (down to 1/64): a string compressed
     by its friction or its WOB near its buckling load is not reached from the straight guess on the axis (a column
-    far past its Euler load), a string without either is (it hangs in tension)."""
-    from .drivers.solve import ConvergenceError
-    from .loads import Friction
+    far past its Euler load), a string without either is (it hangs in tension). The load is raised under the softer
+    law :data:`RAMP_EPS`, then the law stiffened to ``eps`` (:func:`rodcont.drivers.solve.settle_in_conduit`'s
+    stages from there); where that fails, the load is raised under ``eps`` itself."""
+    from .drivers.solve import ConvergenceError, _homotopy
+    soft = max(eps, RAMP_EPS)
+    if soft == eps:
+        return _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step)
+    try:
+        _, x = _raise_load(placed, mu, op, T, bit_torque, soft, N, k, force_scale, tol, step)
+        sysm = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, 1.0)
+        return sysm, _homotopy(sysm, x, sysm.base, tol, _stiffening(soft, eps), True)
+    except ConvergenceError:  # the softer law's path is no verdict: the wall's own is
+        return _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step)
 
-    def system(lam):
-        scaled = lam * mu if isinstance(mu, (int, float)) else tuple((a, lam * v) for a, v in mu)
-        return build_system(placed, Friction(scaled, placed.radius, op), lam * T, lam * bit_torque, eps, N, k,
-                            force_scale=force_scale)
-    sysm = system(0.0)
+
+def _stiffening(soft: float, eps: float) -> list:
+    """The smoothings from ``soft`` down to ``eps`` by factors of 10 (:func:`settle`'s), ``soft`` excluded."""
+    stages, e = [], soft / 10
+    while e > eps * (1 + 1e-9):
+        stages.append(e)
+        e /= 10
+    return stages + [eps]  # the last stage the wall's own exactly
+
+
+def _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, lam):
+    """:func:`build_system` with the friction factor and the bit's force and torque ``lam`` times theirs."""
+    from .loads import Friction
+    scaled = lam * mu if isinstance(mu, (int, float)) else tuple((a, lam * v) for a, v in mu)
+    return build_system(placed, Friction(scaled, placed.radius, op), lam * T, lam * bit_torque, eps, N, k,
+                        force_scale=force_scale)
+
+
+def _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step):
+    """The load raised from 0 in steps of ``step`` under the law ``eps`` (:func:`_loaded_gradually`)."""
+    from .drivers.solve import ConvergenceError
+    sysm = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, 0.0)
     x, lam = settle(sysm, sysm.model.initial_guess(sysm.disc, 0.0), tol), 0.0
     while lam < 1.0:
         nxt = min(1.0, lam + step)
-        trial = system(nxt)
+        trial = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, nxt)
         r = trial.disc.newton(x, trial.base, tol=tol, max_iter=40)
         if r.converged:
             sysm, x, lam = trial, r.x, nxt
