@@ -28,7 +28,7 @@ def _on(well, string, depth, N, force_scale=None):
 
 def test_a_rotating_strings_error_is_its_converged_richer_solutions(well_and_string):
     # the friction torque is mu r times the wall's force: on the stiff contact law one Newton step in the richer
-    # space overstates its error 13 times here (35 times at 1000 m), the converged richer solution does not
+    # space overstates its error 13 times here (measured 12.7), the converged richer solution 1.4 times
     well, string = well_and_string
     N = drilling.first_mesh(drilling.place_string(well, string, 500.0), 0.0)
     td = _on(well, string, 500.0, N)

@@ -101,7 +101,7 @@ class ErrorEstimator:
 
     With ``converge=True`` the richer problem at fixed parameter is solved to convergence (damped Newton from the
     one step, :func:`rodcont.linalg.newton_solve`; the one step where it does not converge): on a stiff contact
-    law the one step overstates the error of a friction torque 35 times (``test_a_rotating_strings_error_is_its_
+    law the one step overstates the error of a friction torque 13 times (``test_a_rotating_strings_error_is_its_
     converged_richer_solutions``), and the mesh refined to its cap for an error it did not have;
     :meth:`converged_estimate` converges the last one-step estimate after the fact.
     """
