@@ -42,6 +42,9 @@ if _as_command():  # the earliest line of rodcont a command runs: from here an i
     _signal.signal(_signal.SIGINT, _interrupted)
     _signal.signal(_signal.SIGTERM, _interrupted)
     del _signal
+    from .blas import command_environment as _blas_env  # before numpy loads OpenBLAS: one thread, none spinning
+    _blas_env()
+    del _blas_env
 
 _API = {
     "RodParameters": "rod", "EulerianRod": "rod", "StraightReference": "rod", "ReferenceCurve": "rod",

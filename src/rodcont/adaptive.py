@@ -59,6 +59,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .blas import with_one_blas_thread
 from .continuation import ContinuationSettings, Kind, Point, StopContinuation, StopReason, Tracker
 from .linalg import HeapTrimmer
 from .mesh import ErrorEstimator, adapted_mesh, halved
@@ -301,6 +302,7 @@ class AdaptiveContinuation:
         self.step_in_use = None  # the step size reached before a remesh: a new segment goes on with it
 
     # ---- the loop -------------------------------------------------------------------
+    @with_one_blas_thread
     def run(self) -> ContinuationResult:
         t0 = time.perf_counter()
         seg = self.first

@@ -46,6 +46,7 @@ from dataclasses import fields
 import numpy as np
 
 from .adaptive import AdaptiveContinuation, AdaptiveSettings, ResultRecorder
+from .blas import with_one_blas_thread
 from .bspline import gauss_legendre
 from .collocation import BVProblem, Collocation
 from .continuation import ContinuationSettings, Event, Point
@@ -356,6 +357,7 @@ def _check_same(a: BVProblem, b: BVProblem, what: str) -> None:
 # --------------------------------------------------------------------------
 # Solve at fixed parameters
 # --------------------------------------------------------------------------
+@with_one_blas_thread
 def solve(problem: BVProblem, params, *, guess=0.0, N: int = 10, k: int = 5, mesh=None, max_error: float = 1e-8,
           N_max: int = 2000, outputs: Mapping[str, Callable] | None = None, scales: Mapping[str, float] | None = None,
           name: str = "problem", tol: float = 1e-11, max_refinements: int = 12) -> Solution:
@@ -577,6 +579,7 @@ def _start(problem: BVProblem, param: str, start, direction: int, outputs, scale
     return system, np.asarray(start["x"], float), float(start["params"][param]), tangent0
 
 
+@with_one_blas_thread
 def continue_bvp(problem: BVProblem, param: str, start, p_range: tuple | None = None, *, direction: int = 1,
                  outputs: Mapping[str, Callable] | None = None, scales: Mapping[str, float] | None = None,
                  name: str | None = None, out: str | None = None, overwrite: bool = False, store_every: int = 1,

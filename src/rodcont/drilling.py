@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .blas import with_one_blas_thread
 from .contact import Wall
 from .loads import Operation
 
@@ -455,6 +456,7 @@ def first_mesh(placed: StringInWell, T_bit: float, N_max: int = 4000) -> int:
     return rod_mesh(placed.rod, T_bit, placed.curve, kind(placed.clearance), N_max)
 
 
+@with_one_blas_thread
 def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Operation | str = "static", *,
                     mu=None, wob: float = 0.0, bit_torque: float = 0.0, trip_speed: float | None = None,
                     rpm: float | None = None, bit: str = "on-axis", N: int | None = None, k: int = 5,
@@ -684,6 +686,7 @@ def _path_vectors(curve, S) -> tuple:
 # --------------------------------------------------------------------------
 # A trace of the string at a fixed depth (its branch file stores the hook load and the surface torque)
 # --------------------------------------------------------------------------
+@with_one_blas_thread
 def trace_bit_force(td: TorqueDrag, T_range: tuple, out: str | None = None, *, overwrite: bool = False,
                     ds: float = 0.1, ds_max: float = 0.5, N_max: int = 4000, max_error: float = 1e-6):
     """Trace the solved string ``td`` in the axial force at the bit ``T`` (``-WOB``) over ``T_range`` (from the

@@ -17,9 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..blas import with_one_blas_thread
+
 OPERATIONS = ("pick-up", "slack-off", "rotate")
 
 
+@with_one_blas_thread
 def broom_job(well, string, depths, operation: str, mu: float, options: dict) -> dict:
     """One curve: the stiff and the soft string at every depth for ``operation`` and ``mu``."""
     from ..drilling import buckling_ratio, soft_string, torque_and_drag

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from ..blas import with_one_blas_thread
 from ..branch import Branch
 from ..continuation import Kind, Point
 from ..linalg import LU, SingularMatrix, max_norm
@@ -316,6 +317,7 @@ class Diagram:
                                                                       "waves_before", "waves_after", "index"))
 
 
+@with_one_blas_thread
 def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
             T: float | None = None, l0: float | None = None, out: str | None = None, overwrite: bool = False,
             deflate_at: Sequence[float] = (), callback: Callable[[Point], None] | None = None,
@@ -538,6 +540,7 @@ def _parallel(jobs, executor, n_jobs: int) -> bool:
     return n_jobs > 1 and workers > 1 and multiprocessing.parent_process() is None
 
 
+@with_one_blas_thread
 def _branch_job(rod, T, N, k, phi, bopts, ends, gamma, attrs, direction: int = 1) -> dict:
     """One direction of one branch of a diagram, traced without a file (a worker's job): the primary branch
     (``phi`` None) from the planar sag, or the seed at ``phi`` traced ``direction`` (-1 down, 1 up) as

@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..adaptive import AdaptiveContinuation, AdaptiveSettings, StartError
+from ..blas import with_one_blas_thread
 from ..branch import Branch
 from ..continuation import ContinuationSettings, Event, Kind, Point
 from ..linalg import LU, bordered
@@ -31,6 +32,7 @@ from .trace import Recorder
 CURVE_PARAMS = ("gamma", "T", "w", "EI", "GJ", "EA")
 
 
+@with_one_blas_thread
 def fold_curve(data, fold: int | str, param: str, lo: float, hi: float, out: str | None = None,
                ds: float = 0.05, ds_max: float = 0.5, max_steps: int = 500, forced: Sequence[float] = (),
                min_alignment: float | None = None, max_error: float = 1e-6, overwrite: bool = False,

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..blas import with_one_blas_thread
 from ..linalg import NewtonResult, chord_solve
 from ..rod import RodParameters
 from ..system import RodSystem, check_number
@@ -539,6 +540,7 @@ _ACCEPTED = ("gamma", "phi_L", "rod", "N", "k", "load_step", "tol", "T", "curve"
              "max_error", "max_side_force_error", "N_max", "strict")
 
 
+@with_one_blas_thread
 def solve_equilibrium(gamma: float | None = None, phi_L: float | None = None, rod: RodParameters | None = None,
                       N: int | None = None, k: int = 5, load_step: float = 0.5, tol: float = 1e-10,
                       T: float | None = None, curve=None, wall=None, *, torque: float | None = None,

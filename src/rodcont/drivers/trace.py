@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ..adaptive import Accuracy, AdaptiveContinuation, Hints, ResultRecorder, StartError
+from ..blas import with_one_blas_thread
 from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
 from ..continuation import ContinuationSettings, Detector, Event, Finding, Kind, Point, StopContinuation, Tracker
 from ..linalg import scaled_smallest_singular_value
@@ -702,6 +703,7 @@ def _stored_start(rod, T, N, k, param, phi_L, start, switch, breakpoints, curve,
     return _Start(system, x0, p0, switch_direction(system, x0, p0, tangent0), True)
 
 
+@with_one_blas_thread
 def trace(gamma: float | None = None, rod: RodParameters | None = None, N: int = 15, k: int = 5, *,
           T: float | None = None, param: str = "phi_L", phi_L: float = 0.0, l0: float | None = None,
           torque: float | None = None, phase: bool = False, start: tuple | None = None, switch: bool = False,

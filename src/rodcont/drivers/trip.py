@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from ..blas import with_one_blas_thread
 from ..branch import CONTACT_COLUMNS, DRILLING_COLUMNS, Branch
 from ..result import Status
 
@@ -60,6 +61,7 @@ def trip_row(r, origin: float, joint_length: float = 9.14) -> dict:
     return out
 
 
+@with_one_blas_thread
 def trip(well, string, depth_range, operation: str = "slack-off", *, points: int = 11, mu=None, out: str | None = None,
          overwrite: bool = False, meta: dict | None = None, warm: bool = False, joint_length: float = 9.14,
          **options) -> Branch:
