@@ -162,3 +162,20 @@ def test_solve_of_a_string_reads_its_guard_and_cap_and_refuses_the_rods_options(
     assert again.returncode == 0, again.stderr
     assert [ln for ln in again.stdout.splitlines() if not ln.startswith("#")] == \
         [ln for ln in r.stdout.splitlines() if not ln.startswith("#")]
+
+
+def test_a_first_mesh_above_the_cap_is_refused_in_one_line(tmp_path):
+    """--N 5000 with the default --N-max 4000 started a mesh above the cap (the cap then none); the rod's solve
+    refuses it, and so does a drill string's, in the API (DrillingError) and in one line at exit 2, no file."""
+    from rodcont import drilling
+    well = drilling.Well.from_toml(WELL)
+    string = drilling.DrillString.from_toml(STRING)
+    with pytest.raises(drilling.DrillingError, match=r"N = 5000 must lie in 1 \.\. N_max = 4000"):
+        drilling.torque_and_drag(well, string, 500.0, "rotate", mu=0.25, N=5000)
+    with pytest.raises(drilling.DrillingError, match="N_max must be an integer >= 1"):
+        drilling.torque_and_drag(well, string, 500.0, N_max=0)
+    r = _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "500", "--N", "5000",
+             "--out", str(tmp_path / "p.h5"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "N = 5000 must lie in 1 .. N_max = 4000 (raise N_max for a larger mesh)" in r.stderr
+    assert not (tmp_path / "p.h5").exists()

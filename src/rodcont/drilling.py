@@ -430,12 +430,17 @@ def adapt(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3, 
             return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
         b = adapted_mesh(sysm.disc.breakpoints, sysm.interval_defect(x, sysm.value()), sysm.disc.k,
                          ratio * max_error, max_error / 4, N_max=N_max)
-        new = sysm.with_mesh(sysm.conform(b))
-        r = new.disc.newton(new.disc.transfer(x, sysm.disc), new.base, tol=tol)
-        sysm, x = new, (r.x if r.converged else settle(new, new.model.initial_guess(new.disc, new.value()), tol))
+        sysm, x = _remeshed(sysm, x, b, tol)
     err, sf, _ = _estimate(sysm, x, max_error, max_side_force_error)
     ratio = _ratio(err, sf, max_error, max_side_force_error)
     return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
+
+
+def _remeshed(sysm, x, b, tol):
+    """``(system, x)`` on the breakpoints ``b`` (conformed), Newton from ``x`` carried over, else settled afresh."""
+    new = sysm.with_mesh(sysm.conform(b))
+    r = new.disc.newton(new.disc.transfer(x, sysm.disc), new.base, tol=tol)
+    return new, (r.x if r.converged else settle(new, new.model.initial_guess(new.disc, new.value()), tol))
 
 
 def _said(sysm, x, err, sf, ratio, max_error, max_side_force_error) -> tuple:
@@ -480,7 +485,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     mu = well.friction if mu is None else mu
     friction = Friction(mu, placed.radius, op)
     T = bit_force(wob)
-    N = first_mesh(placed, T, N_max) if N is None else int(N)
+    N, N_max = _mesh_size(N, N_max, placed, T)
     with np.errstate(all="ignore"):
         sysm, x = _warm(placed, friction, T, bit_torque, well.eps, k, start, tol) if start is not None else (None, None)
         if x is None:
@@ -492,6 +497,21 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
                                             tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
+
+
+def _mesh_size(N, N_max, placed: StringInWell, T: float) -> tuple:
+    """``(N, N_max)``: the first mesh (default :func:`first_mesh`) checked against the cap, as
+    :func:`rodcont.drivers.solve.solve_equilibrium` checks it (a first mesh above ``N_max`` makes the cap none)."""
+    from .system import check_number
+    N_max = int(check_number("N_max", N_max, integer=True))
+    if N_max < 1:
+        raise DrillingError(f"N_max must be an integer >= 1, got {N_max}")
+    if N is None:
+        return first_mesh(placed, T, N_max), N_max
+    N = int(check_number("N", N, integer=True))
+    if not 1 <= N <= N_max:
+        raise DrillingError(f"N = {N} must lie in 1 .. N_max = {N_max} (raise N_max for a larger mesh)")
+    return N, N_max
 
 
 #: the contact law's smoothing the load is raised under (the wall's own where stiffer): under eps = 1e-5 each step
