@@ -71,3 +71,22 @@ def test_an_equilibrium_returned_at_the_cap_above_its_guard_says_so(well_and_str
     with pytest.warns(RuntimeWarning, match="above its guard"):
         td = drilling.torque_and_drag(well, string, 500.0, "rotate", mu=0.25, N_max=N)
     assert td.error > 1e-6
+
+
+def test_a_mesh_below_the_first_mesh_rule_is_said(well_and_string):
+    # two subintervals per lift-off length: below it (N 200 at 500 m, 1.4 per length) the string settled in no
+    # contact zone with 35.1 kN on the wall and an estimate of 1.4e-10; on 300-1680 subintervals 10.01-10.02 kN in
+    # 4-5 zones. The estimate compares richer spaces on the same mesh and cannot see it: the rule is said instead.
+    well, string = well_and_string
+    need = drilling.first_mesh(drilling.place_string(well, string, 500.0), 0.0, 2**62)
+    assert need == 420
+    with pytest.warns(RuntimeWarning, match=r"N = 200 is below the N = 420 .* raise N_max") as seen:
+        coarse = drilling.torque_and_drag(well, string, 500.0, N_max=200)
+    assert all(w.filename == __file__ for w in seen.list if "below the N" in str(w.message))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        ruled = drilling.torque_and_drag(well, string, 500.0)
+    finer = drilling.torque_and_drag(well, string, 500.0, N=2 * need, N_max=2 * need)
+    assert ruled.N >= need and len(ruled.zones) >= 4
+    assert abs(ruled.side_force - finer.side_force) < 1e-3 * finer.side_force
+    assert abs(coarse.side_force - finer.side_force) > 1.0 * finer.side_force and not coarse.zones
