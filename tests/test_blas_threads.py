@@ -76,3 +76,11 @@ def test_a_library_import_leaves_the_environment_alone():
     code = "import rodcont, os; print(os.environ.get('OPENBLAS_NUM_THREADS'))"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
     assert out.split() == ["None"]
+
+
+def test_a_solves_warning_points_at_the_callers_line_not_the_wrapper():
+    # with_one_blas_thread adds a frame: a warning aimed at the caller of solve (stacklevel) landed on
+    # rodcont/blas.py until its stacklevel counted the wrapper
+    with pytest.warns(RuntimeWarning, match="exceeds its guard") as seen:
+        rodcont.solve(gamma=1.0, phi_L=6.0, N=3, k=3, adapt=False)
+    assert {w.filename for w in seen.list if "exceeds its guard" in str(w.message)} == {__file__}

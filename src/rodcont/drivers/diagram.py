@@ -629,7 +629,7 @@ def _keep_traced(dg: Diagram, rod, T, k, phi, crit, down, up, writer, callback, 
     origin = _origin(phi, crit)
     for r in (down, up):
         for message, category in (r["warnings"] if r is not None else ()):
-            warnings.warn(message, category, stacklevel=4)
+            warnings.warn(message, category, stacklevel=5)  # the caller's line, past with_one_blas_thread
     if up["error"] is not None:
         dg.skipped.append((origin, up["error"]))
         note(f"  skipped {origin}: {up['error']}")
@@ -789,7 +789,7 @@ def _signature_at(db: DiagramBranch, phi: float, rod, T, k):
     """Signatures of the branch's points at exactly ``phi`` (its forced points)."""
     b = db.branch
     out = []
-    for i, (p, kind) in enumerate(zip(b.table["phi_L"], b.table["kind"])):
+    for i, (p, _kind) in enumerate(zip(b.table["phi_L"], b.table["kind"])):
         if abs(p - phi) <= 1e-9 * (1 + abs(phi)):
             s = RodSystem(rod, T=T, N=b.meshes[i].size - 1, k=k, breakpoints=b.meshes[i])
             out.append(shape_signature(s, b.coefficients[i]))

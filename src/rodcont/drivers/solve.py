@@ -615,7 +615,7 @@ def solve_equilibrium(gamma: float | None = None, phi_L: float | None = None, ro
     where = ", ".join(f"{n} = {out[n]:g}" for n in ("T", "phi_L"))
     check_physical(out, where)
     for s in said:
-        warnings.warn(s, RuntimeWarning, stacklevel=2)
+        warnings.warn(s, RuntimeWarning, stacklevel=3)  # the caller's line, past with_one_blas_thread
     return Equilibrium(out, x, sysm, r, check.error, check.side_force_error, said, notes, check.law_side_force_error)
 
 
