@@ -68,3 +68,35 @@ def test_hanging_string_of_two_sections_is_the_closed_form():
     want = up(up(0.0, 2000.0, 5.9e7, 100.0), 280.0, 7.0e6, 400.0)
     assert r.hook_load == pytest.approx(want, rel=1e-9)
     assert max(abs(r.profile["gap"] - r.system.model.wall.clearance_at(r.profile["S"]))) < 1e-9
+
+
+def test_the_depth_is_the_stretched_strings(tmp_path):
+    """In a vertical hole the hook load is the buoyed weight of the unstressed string, which fills the stretched
+    MD: 300 m of sections carry w (L - stretch), the stretch of each its own F/EA integrated over it (first order:
+    F the weight below; the README's 24 N, 5.7e-5 below the weight of 300 m of pipe)."""
+    (tmp_path / "v.csv").write_text("0,0,0\n1000,0,0\n")
+    (tmp_path / "v.toml").write_text('[well]\nsurvey = "v.csv"\n')
+    well = Well.from_toml(str(tmp_path / "v.toml"))
+    string = DrillString.from_toml(os.path.join(EXAMPLES, "drill_string.toml"))
+    td = torque_and_drag(well, string, 300.0, "static")
+    spans = string.spans(300.0)            # (top, bottom, section) from the rig down
+    w = [s.w_air * string.buoyancy_factor for _, _, s in spans]
+    below = np.cumsum([wi * (b - a) for wi, (a, b, _) in zip(w[::-1], spans[::-1])])[::-1]   # weight below each top
+    stretch = [((below[i] - wi * (b - a)) * (b - a) + wi * (b - a) ** 2 / 2) / s.EA
+               for i, (wi, (a, b, s)) in enumerate(zip(w, spans))]
+    weight = sum(wi * (b - a) for wi, (a, b, _) in zip(w, spans))
+    expected = weight - sum(wi * e for wi, e in zip(w, stretch))
+    assert abs(td.hook_load - expected) < 0.02 * (weight - expected)     # the first-order stretch to 2 %
+    assert round(weight - td.hook_load) == 24 and round((weight - td.hook_load) / weight, 6) == 5.7e-5
+
+
+def test_a_survey_must_start_at_the_rig_and_a_string_names_its_buoyancy_once(tmp_path):
+    (tmp_path / "s.csv").write_text("100,0,0\n1000,0,0\n")
+    (tmp_path / "w.toml").write_text('[well]\nsurvey = "s.csv"\n')
+    with pytest.raises(DrillingError, match=r"starts at MD 100 m: a well's survey starts at the rig, MD 0"):
+        Well.from_toml(str(tmp_path / "w.toml"))
+    text = open(os.path.join(EXAMPLES, "drill_string.toml")).read()
+    both = text.replace("mud_density = 1200.0", "mud_density = 1200.0\nbuoyancy_factor = 0.9")
+    (tmp_path / "d.toml").write_text(both)
+    with pytest.raises(DrillingError, match="mud_density or buoyancy_factor in \\[string\\], not both"):
+        DrillString.from_toml(str(tmp_path / "d.toml"))

@@ -727,6 +727,14 @@ def _sin(x, nu, b):
 # --------------------------------------------------------------------------
 # Well path: minimum curvature between survey stations
 # --------------------------------------------------------------------------
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 class MinimumCurvatureWell(ReferenceCurve):
     """A well path through survey stations ``(measured depth, inclination, azimuth)`` by minimum curvature.
 
@@ -803,7 +811,9 @@ class MinimumCurvatureWell(ReferenceCurve):
     @classmethod
     def from_file(cls, path: str, **kw) -> MinimumCurvatureWell:
         """Stations from a text file: three columns MD, inclination, azimuth (degrees), separated by
-        blanks or commas; ``#`` starts a comment; a first line that is not numbers is a header."""
+        blanks or commas; ``#`` starts a comment; a first line none of whose fields is a number is a header
+        (``0,0,O`` with a letter O is a station with a typo, not a header: taken for one, the survey began at the
+        next station, 400 m deeper, silently; test_a_typo_in_the_first_survey_station_is_not_taken_for_a_header)."""
         from .safeio import InputFileError, read_input
         rows = []
         try:  # a regular file of survey size only: a device, a FIFO or a huge file is refused before reading
@@ -815,15 +825,17 @@ class MinimumCurvatureWell(ReferenceCurve):
         except UnicodeDecodeError as exc:
             raise ValueError(f"the survey file {path}: not text (byte {exc.start} is not UTF-8)") from None
         lines = text.splitlines()
+        first = True
         for i, line in enumerate(lines):
             line = line.split("#", 1)[0].replace(",", " ").strip()
             if not line:
                 continue
+            header, first = first and not any(_is_number(v) for v in line.split()), False
+            if header:
+                continue
             try:
                 vals = [float(v) for v in line.split()]
             except ValueError:
-                if not rows:
-                    continue  # header
                 raise ValueError(f"{path}, line {i + 1}: not three numbers: {line!r}") from None
             if len(vals) != 3:
                 raise ValueError(f"{path}, line {i + 1}: expected MD, inclination, azimuth, got {len(vals)} values")

@@ -106,6 +106,12 @@ class DrillString:
         if unknown or not isinstance(doc.get("section"), list):
             raise DrillingError(f"{path}: needs [string] (mud_density or buoyancy_factor, E, G, density) and "
                                 f"[[section]] tables" + (f"; unknown key(s) {', '.join(unknown)}" if unknown else ""))
+        for key in ("E", "G", "density", "buoyancy_factor"):
+            _positive(head, key, path)
+        if "mud_density" in head:
+            _positive(head, "mud_density", path, zero=True)
+        if "mud_density" in head and "buoyancy_factor" in head:
+            raise DrillingError(f"{path}: give mud_density or buoyancy_factor in [string], not both")
         steel = {key: float(head.get(key, v)) for key, v in STEEL.items()}
         sections = tuple(_section(row, steel, f"{path}: section {i + 1}") for i, row in enumerate(doc["section"]))
         rho = mud_density if mud_density is not None else head.get("mud_density")
@@ -129,6 +135,15 @@ class DrillString:
                             f"give the top section no length")
 
 
+def _positive(table: dict, key: str, where: str, zero: bool = False) -> None:
+    """``table[key]``, if there, a finite number > 0 (>= 0 with ``zero``), else a one-line :class:`DrillingError`
+    (a text E or a density of 0 were an 'unexpected failure': test_a_bad_value_in_the_string_header_...)."""
+    v = table.get(key)
+    if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                          or not (v >= 0 if zero else v > 0)):
+        raise DrillingError(f"{where}: {key} must be a {'non-negative' if zero else 'positive'} number, got {v!r}")
+
+
 def _read_toml(path: str, what: str) -> dict:
     import tomllib
 
@@ -145,9 +160,11 @@ def _table(value, what: str, where: str):
     """A number or MD stations ``[[MD, value], ...]`` (piecewise constant from each MD on), as given."""
     from .loads import _stations
     try:
-        _stations(value, what)
+        _, values = _stations(value, what)
     except ValueError as exc:
         raise DrillingError(f"{where}: {exc}") from None
+    if not np.all(np.isfinite(values)) or np.any(values < 0):  # friction = nan solved to 'residual not finite'
+        raise DrillingError(f"{where}: {what} must be finite and non-negative, got {value!r}")
     return float(value) if isinstance(value, (int, float)) else tuple((float(a), float(b)) for a, b in value)
 
 
@@ -181,6 +198,9 @@ class Well:
             stations = MinimumCurvatureWell.from_file(survey).stations
         except (ValueError, OSError) as exc:
             raise DrillingError(f"{path}: survey {sec['survey']}: {exc}") from None
+        if stations[0][0] != 0.0:  # --depth is MD from the rig: from a later first station it read the wrong MD
+            raise DrillingError(f"{path}: survey {sec['survey']} starts at MD {stations[0][0]:g} m: a well's survey "
+                                f"starts at the rig, MD 0 (add a first station 0, 0, 0 above a vertical top hole)")
         eps = sec.get("eps", 1e-5)
         if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 1e-12 <= eps <= 0.1:
             raise DrillingError(f"{path}: eps must be a number in 1e-12 .. 0.1, got {eps!r}")
@@ -478,6 +498,8 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     from .drivers.solve import ConvergenceError
     from .ends import bit_force
     from .loads import Friction
+    from .system import check_number
+    wob, bit_torque = check_number("wob", wob, nonnegative=True), check_number("bit_torque", bit_torque)
     op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
     if op.name != "drill" and (wob or bit_torque):
         raise DrillingError(f"weight and torque on bit are for drilling (the bit on bottom), not {op.name}")

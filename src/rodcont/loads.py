@@ -26,6 +26,7 @@ must be analytic in the jets (the complex step differentiates them).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -203,6 +204,21 @@ OPERATIONS = {"pick-up": (1.0, 0.0), "slack-off": (-1.0, 0.0), "rotate": (0.0, 6
               "static": (0.0, 0.0)}
 
 
+_MEANS = {"pick-up": "trips out (trip speed > 0)", "slack-off": "trips in (trip speed < 0)",
+          "rotate": "turns the string (rpm != 0)", "drill": "has the bit on bottom (trip speed <= 0)",
+          "static": "is the string at rest (no trip speed, no rpm)"}
+
+
+def motion_name(trip_speed: float | None, rpm: float | None, on_bottom: bool = False) -> str:
+    """The operation a motion names: drill on bottom; off bottom tripping out or in by the trip speed's sign
+    (turning or not), else rotate where it turns, else static."""
+    if on_bottom:
+        return "drill"
+    if trip_speed:
+        return "pick-up" if trip_speed > 0 else "slack-off"
+    return "rotate" if rpm else "static"
+
+
 @dataclass(frozen=True)
 class Operation:
     """The string's motion in the hole, the same at every point (a rigid trip and turn): trip speed ``V``
@@ -221,12 +237,25 @@ class Operation:
     rpm: float = 0.0
 
     @classmethod
-    def named(cls, name: str, trip_speed: float | None = None, rpm: float | None = None) -> Operation:
-        """An operation of :data:`OPERATIONS` by name; ``trip_speed``/``rpm`` replace its motion (combined)."""
+    def named(cls, name: str | None, trip_speed: float | None = None, rpm: float | None = None) -> Operation:
+        """An operation of :data:`OPERATIONS` by name (None: the one the motion names, :func:`motion_name`);
+        ``trip_speed``/``rpm`` replace its motion (combined), and may not contradict the name: pick-up trips out
+        (``V > 0``), slack-off in (``V < 0``), rotate and drill turn (``rpm != 0``), static is at rest (``--operation
+        pick-up --trip-speed -0.5`` solved a slack-off and printed pick-up: test_the_printed_operation_is_...)."""
+        for what, v in (("trip_speed", trip_speed), ("rpm", rpm)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
+                raise ValueError(f"{what} must be a finite number, got {v!r}")
+        name = motion_name(trip_speed, rpm) if name is None else name
         if name not in OPERATIONS:
             raise ValueError(f"unknown operation {name!r}: one of {', '.join(OPERATIONS)}")
         V, rpm0 = OPERATIONS[name]
-        return cls(name, float(V if trip_speed is None else trip_speed), float(rpm0 if rpm is None else rpm))
+        op = cls(name, float(V if trip_speed is None else trip_speed), float(rpm0 if rpm is None else rpm))
+        wrong = {"pick-up": op.trip_speed <= 0, "slack-off": op.trip_speed >= 0, "rotate": op.rpm == 0,
+                 "drill": op.trip_speed > 0, "static": op.trip_speed != 0 or op.rpm != 0}[name]
+        if wrong:
+            raise ValueError(f"operation {name} {_MEANS[name]}: trip speed {op.trip_speed:g} m/s and {op.rpm:g} rpm "
+                             f"contradict it (give the operation the motion names, or no operation)")
+        return op
 
     @property
     def omega(self) -> float:

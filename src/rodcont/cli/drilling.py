@@ -87,10 +87,12 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     :class:`rodcont.drilling.TorqueDrag`."""
     from ..drilling import DrillingError, torque_and_drag
     from ..drivers.solve import ConvergenceError
+    from ..loads import motion_name
     if conduit is None:
         raise click.UsageError("--string needs the well: --conduit WELL.toml (a [well] file)")
     well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
-    op = values.get("operation") or ("drill" if values.get("wob") or values.get("bit_torque") else "static")
+    op = values.get("operation") or motion_name(values.get("trip_speed"), values.get("rpm"),
+                                                 bool(values.get("wob") or values.get("bit_torque")))
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
     joint_length = _joint_length(values)
     from ..branchfile import BranchFileError, check_output
@@ -183,6 +185,7 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     from ..drilling import DrillingError
     from ..drivers.solve import ConvergenceError
     from ..drivers.trip import trip
+    from ..loads import motion_name
     if param != "depth":
         raise click.UsageError(f"--string traces in --param depth (a trip), got --param {param}")
     if conduit is None:
@@ -199,7 +202,8 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
             check_output(out, _inputs(conduit, values["string"], well), overwrite=overwrite)
         except (BranchFileError, ValueError, OSError) as exc:
             raise click.UsageError(str(exc)) from None
-    op = values.get("operation") or "slack-off"
+    op = values.get("operation") or (motion_name(values.get("trip_speed"), None) if values.get("trip_speed")
+                                     else "slack-off")
     try:
         br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
                   mu=_check("friction", values.get("friction"), nonnegative=True),
