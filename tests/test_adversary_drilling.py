@@ -146,3 +146,4 @@ def test_an_interrupted_trip_file_does_not_claim_its_bound(tmp_path, monkeypatch
     with h5py.File(out) as f:
         assert f["branch/depth"].shape[0] == 2
         assert f.attrs["status"] != "bound", f.attrs["stop_reason"]
+        assert (f.attrs["status"], f.attrs["stop_reason"]) == ("interrupted", "interrupted")

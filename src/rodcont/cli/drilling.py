@@ -241,28 +241,20 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     factor, the soft-string estimate beside each, and the surface torque against depth."""
     import numpy as np
 
-    from ..drivers.broomstick import broomstick, plot_broomstick, write_broomstick
+    from ..drivers.broomstick import broomstick
     # click's options take one value each: the further numbers of --friction 0.15 0.25 0.35 arrive as arguments
     friction = [_check("friction", f, nonnegative=True) for f in tuple(friction) + tuple(more_friction)]
     a, b = depth
     if not (a > 0 and b > a) or points < 2:
         raise click.UsageError(f"--depth A B needs 0 < A < B and --points at least 2, got {a:g} {b:g}, {points}")
-    for path in (png, h5):
-        if path is not None and os.path.lexists(path) and not overwrite:
-            raise click.UsageError(f"{path} exists: choose another name or add --overwrite to replace it")
     w, s = _load(well, string, _check("mud-density", mud_density, positive=True))
-    inputs = {os.path.realpath(p) for p in _inputs(well, string, w)}
-    for path in (png, h5):
-        if path is not None and os.path.realpath(path) in inputs:
-            raise click.UsageError(f"{path} is an input: choose another output")
+    _check_broom_outputs(png, h5, _inputs(well, string, w), overwrite)
     if b > w.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")
     br = broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs)
     for op, mu, d, why in br.failures:
         click.echo(f"rodcont: warning: {op}, mu {mu:g}, depth {d:g}: {why}", err=True)
-    plot_broomstick(br, png)
-    if h5 is not None:
-        write_broomstick(br, h5, dict(well=os.path.abspath(well), string=os.path.abspath(string)))
+    _write_broom(br, png, h5, dict(well=os.path.abspath(well), string=os.path.abspath(string)))
     i = -1  # the deepest point of each curve, as name value lines
     for k, op in enumerate(br.operations):
         for j, mu in enumerate(br.mus):
@@ -270,6 +262,33 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     for j, mu in enumerate(br.mus):
         click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
     click.echo(f"plot {png}")
+
+
+def _check_broom_outputs(png, h5, inputs, overwrite) -> None:
+    """The plot and the points' file checked before any solve, as ``solve`` checks its outputs: writable, not an
+    input, not there unless ``overwrite``, and not one file for both (the second write replaced the first)."""
+    from ..branchfile import BranchFileError, check_output, same_file
+    for path, what in ((png, "-o"), (h5, "--out")):
+        if path is None:
+            continue
+        try:
+            check_output(path, inputs, overwrite=overwrite, what=what)
+        except (BranchFileError, ValueError, OSError) as exc:
+            raise click.UsageError(str(exc)) from None
+    if h5 is not None and same_file(png, h5):  # links too
+        raise click.UsageError(f"-o and --out name the same file {h5}: give two names")
+
+
+def _write_broom(br, png, h5, meta) -> None:
+    """The plot and the points' file published together (:class:`rodcont.safeio.Staged`): where either cannot be
+    written, neither is (an old file stays as it was)."""
+    from ..drivers.broomstick import broomstick_image, broomstick_picture
+    from ..safeio import Staged
+    with Staged() as stage:
+        stage.add(png, broomstick_picture(br, png)[0])
+        if h5 is not None:
+            stage.add(h5, broomstick_image(br, meta))
+        stage.commit()
 
 
 def register(group) -> None:

@@ -131,29 +131,33 @@ def buckling_onsets(b: Broomstick) -> dict:
 
 
 def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None:
-    """The broomstick as HDF5 (written whole, then renamed over ``path``): ``depth``, ``friction``, ``operations``
-    and one dataset per array of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes."""
-    import h5py
+    """The broomstick as HDF5 (:func:`broomstick_image`, written whole beside ``path``, synced, renamed over it:
+    :func:`rodcont.safeio.publish`)."""
+    from ..safeio import publish
+    publish(path, broomstick_image(b, meta))
 
-    from ..safeio import commit, discard
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["kind"] = "broomstick"
-            for key, v in (meta or {}).items():
-                f.attrs[key] = v
-            f["depth"] = b.depths
-            f["friction"] = np.asarray(b.mus)
-            f["operations"] = np.array(b.operations, dtype=h5py.string_dtype())
-            for key, v in b.data.items():
+
+def broomstick_image(b: Broomstick, meta: dict | None = None) -> bytes:
+    """The bytes of the broomstick's HDF5 file: ``depth``, ``friction``, ``operations`` and one dataset per array
+    of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes. Built in memory, so that
+    it and the plot can be published together (:class:`rodcont.safeio.Staged`)."""
+    import io
+
+    import h5py
+    buf = io.BytesIO()
+    with h5py.File(buf, "w") as f:
+        f.attrs["kind"] = "broomstick"
+        for key, v in (meta or {}).items():
+            f.attrs[key] = v
+        f["depth"] = b.depths
+        f["friction"] = np.asarray(b.mus)
+        f["operations"] = np.array(b.operations, dtype=h5py.string_dtype())
+        for key, v in b.data.items():
+            f[key] = v
+        if "buckling_ratio" in b.data:
+            for key, v in buckling_onsets(b).items():  # (operation x friction) bit depths, NaN: none
                 f[key] = v
-            if "buckling_ratio" in b.data:
-                for key, v in buckling_onsets(b).items():  # (operation x friction) bit depths, NaN: none
-                    f[key] = v
-        commit(tmp, path)
-    except BaseException:
-        discard(tmp)
-        raise
+    return buf.getvalue()
 
 
 def read_broomstick(path: str) -> Broomstick:
@@ -239,3 +243,15 @@ def plot_broomstick(b: Broomstick, path: str, title: str | None = None) -> list:
     fig, markers = broomstick_figure(b, title)
     save_figure(fig, path, dpi=120)
     return markers
+
+
+def broomstick_picture(b: Broomstick, path: str, title: str | None = None) -> tuple:
+    """``(bytes, markers)``: :func:`broomstick_figure` rendered as :func:`plot_broomstick` writes it to ``path``
+    (the format of its suffix when matplotlib writes it, else PNG), kept in memory to be published with the
+    broomstick's file (:class:`rodcont.safeio.Staged`)."""
+    import io
+    fig, markers = broomstick_figure(b, title)
+    fmt = os.path.splitext(path)[1][1:].lower()
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=120, format=fmt if fmt in fig.canvas.get_supported_filetypes() else "png")
+    return buf.getvalue(), markers

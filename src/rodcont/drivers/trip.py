@@ -78,35 +78,43 @@ def trip(well, string, depth_range, operation: str = "slack-off", *, points: int
     branch = Branch(math.nan, sysm.rod, sysm.disc.N, sysm.disc.k, "depth", attrs=attrs, curve=sysm.curve,
                     wall=sysm.wall)
     writer, recorder = _open(out, overwrite, attrs, branch, sysm)
-    status, message = Status.BOUND, f"parameter bound depth = {depths[-1]:g} reached"
+    # an ending the loop does not reach (Ctrl-C, SIGTERM, an error) is said as the traces say it, not as the bound
+    status, message = Status.INTERRUPTED, "interrupted"
     try:
         prev = _record(recorder, joint_length, first, depths[0], "start")
-        for d in depths[1:]:
-            r, why = _advance(well, string, prev, float(d), operation, mu, warm, options)
-            if r is None:
-                status, message = Status.NO_CONVERGENCE, why
-                break
-            for label, level in BUCKLING_EVENTS:
-                if _ratio(prev) < level <= _ratio(r):
-                    ev = _locate(well, string, prev, r, lambda q, v=level: _ratio(q) - v, operation, mu, warm,
-                                 options)
-                    _record(recorder, joint_length, ev, depths[0], f"event:{label}",
-                            f"{label.replace('_', ' ')} at depth {ev.depth:.6g} m: the compression reaches "
-                            f"{level:.4g} times the Dawson-Paslay load somewhere along the string")
-            if operation == "slack-off" and r.hook_load <= 0 < prev.hook_load:
-                lock = _lock_up(well, string, prev, r, operation, mu, warm, options)
-                _record(recorder, joint_length, lock, depths[0], "event:lock_up",
-                        f"lock-up at depth {lock.depth:.6g} m: the hook load reaches zero (the string cannot be "
-                        f"pushed further in)")
-                status, message = Status.EVENT, f"lock-up at depth {lock.depth:.6g} m"
-                break
-            prev = _record(recorder, joint_length, r, depths[0], "regular" if d != depths[-1] else "bound")
+        status, message = _march(well, string, prev, depths, operation, mu, warm, options, recorder, joint_length)
+    except Exception as exc:
+        message = f"interrupted by {type(exc).__name__}: {exc}"
+        raise
     finally:
         branch.status, branch.message = status, message
         if writer is not None:
             recorder.sync()
             writer.close(message, status)
     return branch
+
+
+def _march(well, string, prev, depths, operation, mu, warm, options, recorder, joint_length) -> tuple:
+    """The trip's points after the first, recorded as they come: ``(status, message)`` of its end (the bound, a
+    lock-up, or no equilibrium at the next depth)."""
+    for d in depths[1:]:
+        r, why = _advance(well, string, prev, float(d), operation, mu, warm, options)
+        if r is None:
+            return Status.NO_CONVERGENCE, why
+        for label, level in BUCKLING_EVENTS:
+            if _ratio(prev) < level <= _ratio(r):
+                ev = _locate(well, string, prev, r, lambda q, v=level: _ratio(q) - v, operation, mu, warm, options)
+                _record(recorder, joint_length, ev, depths[0], f"event:{label}",
+                        f"{label.replace('_', ' ')} at depth {ev.depth:.6g} m: the compression reaches "
+                        f"{level:.4g} times the Dawson-Paslay load somewhere along the string")
+        if operation == "slack-off" and r.hook_load <= 0 < prev.hook_load:
+            lock = _lock_up(well, string, prev, r, operation, mu, warm, options)
+            _record(recorder, joint_length, lock, depths[0], "event:lock_up",
+                    f"lock-up at depth {lock.depth:.6g} m: the hook load reaches zero (the string cannot be "
+                    f"pushed further in)")
+            return Status.EVENT, f"lock-up at depth {lock.depth:.6g} m"
+        prev = _record(recorder, joint_length, r, depths[0], "regular" if d != depths[-1] else "bound")
+    return Status.BOUND, f"parameter bound depth = {depths[-1]:g} reached"
 
 
 def write_point(well, string, td, out: str, overwrite: bool = False, meta: dict | None = None,
