@@ -17,16 +17,20 @@ def save_figure(fig: Figure, path: str, dpi: int = 130) -> None:
     """Write ``fig`` to ``path`` atomically (:func:`rodcont.safeio.publish`: rendered in memory, written to a
     temporary file beside it, synced, renamed over it): a full disk or a kill leaves an existing image whole.
     The format is the suffix's when matplotlib writes it, else PNG."""
+    from .safeio import publish
+    publish(path, rendered(fig, path, dpi))
+
+
+def rendered(fig: Figure, path: str, dpi: int = 130) -> bytes:
+    """``fig`` rendered in memory in the format of ``path``'s suffix where matplotlib writes it, else PNG."""
     import io
     import os
-
-    from .safeio import publish
     fmt = os.path.splitext(path)[1][1:].lower()
     if fmt not in fig.canvas.get_supported_filetypes():
         fmt = "png"
     buf = io.BytesIO()
     fig.savefig(buf, dpi=dpi, format=fmt)
-    publish(path, buf.getbuffer())
+    return buf.getvalue()
 
 
 def _figure(w, h):
@@ -130,7 +134,8 @@ def response_diagram(files, path: str, title: str | None = None, x: str | None =
             br = b.branch
             for name in (xv, yv):
                 if name not in br:
-                    raise ValueError(f"{d.path} has no column {name!r} (it has: {', '.join(sorted(k for k in br if br[k].ndim == 1))})")
+                    columns = ", ".join(sorted(k for k in br if br[k].ndim == 1))
+                    raise ValueError(f"{d.path} has no column {name!r} (it has: {columns})")
             order = np.argsort(br["arclength"]) if d.attrs.get("kind") == "fold_curve" else np.arange(len(br[xv]))
             X, Y = np.asarray(br[xv], float)[order], np.asarray(br[yv], float)[order]
             unstable = br.get("unstable_modes")

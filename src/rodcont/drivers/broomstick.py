@@ -249,9 +249,6 @@ def broomstick_picture(b: Broomstick, path: str, title: str | None = None) -> tu
     """``(bytes, markers)``: :func:`broomstick_figure` rendered as :func:`plot_broomstick` writes it to ``path``
     (the format of its suffix when matplotlib writes it, else PNG), kept in memory to be published with the
     broomstick's file (:class:`rodcont.safeio.Staged`)."""
-    import io
+    from ..plots import rendered
     fig, markers = broomstick_figure(b, title)
-    fmt = os.path.splitext(path)[1][1:].lower()
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=120, format=fmt if fmt in fig.canvas.get_supported_filetypes() else "png")
-    return buf.getvalue(), markers
+    return rendered(fig, path, dpi=120), markers
