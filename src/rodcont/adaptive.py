@@ -112,8 +112,8 @@ class AdaptiveSettings:
                 raise ValueError(f"{name} must be a positive number, got {v!r}")
         for name in ("N_max", "start_refinements", "error_remeshes", "fold_remeshes", "halvings", "measure_every"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (1 if name in ("N_max",
-                                                                                                 "measure_every") else 0):
+            least = 1 if name in ("N_max", "measure_every") else 0
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
                 raise ValueError(f"{name} must be a non-negative integer (N_max, measure_every >= 1), got {v!r}")
         if not isinstance(self.adapt, (bool, np.bool_)):
             raise TypeError(f"adapt must be True or False, got {self.adapt!r}")

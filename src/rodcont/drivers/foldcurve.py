@@ -145,7 +145,8 @@ class _FoldStart:
 
 
 class _FoldRecorder(Recorder):
-    """A fold-curve point stored as a branch's: the state ``x`` (without ``phi_L``) and the tangent of ``(x, phi_L)``."""
+    """A fold-curve point stored as a branch's: the state ``x`` (without ``phi_L``) and the tangent of
+    ``(x, phi_L)``."""
 
     def add(self, pt: Point, problem) -> int:
         return self.add_row(self.branch.row(pt), pt.x[:-1], pt.tx, problem.breakpoints, pt.message)

@@ -313,7 +313,9 @@ class _RodHints(Hints):
     def start_failed(self, problem) -> str:
         # a contact on a mesh too coarse for it is the usual cause in a conduit (the 1 km well at the default
         # N = 15, 61 with its stations: elements of 16 m in a 5 cm clearance; N = 200 starts)
-        return f" (N = {problem.disc.N} may be too coarse for the contact: raise --N)" if problem.wall is not None else ""
+        if problem.wall is None:
+            return ""
+        return f" (N = {problem.disc.N} may be too coarse for the contact: raise --N)"
 
     def stopped(self, status, problem, last) -> str:
         return _symmetry_hint(problem) or (_singular_hint(*last) if last else "")
