@@ -110,3 +110,23 @@ def test_a_collars_contact_on_its_joint_is_the_refined_meshs():
     assert j["side_force"][k] == pytest.approx(ref[k], rel=1e-3)
     assert j["side_force"].sum() == pytest.approx(ref.sum(), rel=1e-4)
     assert j["side_force"].sum() == pytest.approx(td.side_force, rel=1e-12)   # the joints tile the total
+
+
+def test_a_zones_force_takes_in_the_light_contact_around_it():
+    # the README's figures: at 1000 m rotating, the collars' top presses on 4 mm at 800 m (their clearance step);
+    # its zone reaches half-way to the zones beside it and carries the collars lying on the low side below
+    import os
+
+    from rodcont import drilling
+    examples = os.path.join(os.path.dirname(__file__), "..", "examples")
+    well = drilling.Well.from_toml(os.path.join(examples, "well_s3d.toml"))
+    string = drilling.DrillString.from_toml(os.path.join(examples, "drill_string.toml"))
+    td = drilling.torque_and_drag(well, string, 1000.0, "rotate", mu=0.25)
+    zone = next(z for z in td.zones if abs(z[0] - 800.0) < 1e-6)
+    assert zone[1] - zone[0] < 0.005 and round(zone[2] / 1e3, 1) == 179.6
+    b = td.system.disc.breakpoints
+    i = int(np.searchsorted(b, 800.0))
+    assert b[i] == pytest.approx(800.0, abs=1e-9) and b[i + 1] > zone[1]   # the 4 mm lie in one interval
+    own = collocated_integral(td.system, td.x, td.params, b[i:i + 2])[0]
+    assert round(own / 1e3, 1) == 3.2
+    assert sum(z[2] for z in td.zones) == pytest.approx(td.side_force, rel=1e-12)   # the zones tile the span
