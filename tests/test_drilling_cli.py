@@ -179,3 +179,28 @@ def test_a_first_mesh_above_the_cap_is_refused_in_one_line(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "N = 5000 must lie in 1 .. N_max = 4000 (raise N_max for a larger mesh)" in r.stderr
     assert not (tmp_path / "p.h5").exists()
+
+
+def test_an_interrupted_trip_says_how_many_depths_its_file_holds(tmp_path, monkeypatch, capsys):
+    import rodcont.drilling as drilling
+    from rodcont.cli.drilling import DRILLING_KEYS, run_drilling_trace
+    real, calls = drilling.torque_and_drag, []
+
+    def interrupted_on_the_third(*args, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kw)
+
+    monkeypatch.setattr(drilling, "torque_and_drag", interrupted_on_the_third)
+    values = {key: None for key in DRILLING_KEYS}
+    values["string"] = STRING
+    out = str(tmp_path / "t.h5")
+    with pytest.raises(KeyboardInterrupt):
+        run_drilling_trace(WELL, values, "depth", (100.0, 200.0), out, points=5)
+    assert "interrupted: " + out + " holds the 2 completed depth(s) of the trip" in capsys.readouterr().err
+    calls.clear()
+    monkeypatch.setattr(drilling, "torque_and_drag", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    with pytest.raises(KeyboardInterrupt):
+        run_drilling_trace(WELL, values, "depth", (100.0, 200.0), str(tmp_path / "u.h5"), points=5)
+    assert "interrupted before the first depth" in capsys.readouterr().err

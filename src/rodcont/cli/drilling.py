@@ -204,12 +204,17 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
             raise click.UsageError(str(exc)) from None
     op = values.get("operation") or (motion_name(values.get("trip_speed"), None) if values.get("trip_speed")
                                      else "slack-off")
+    from .common import file_identity
+    before = file_identity(out) if out is not None else None
     try:
         br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
                   mu=_check("friction", values.get("friction"), nonnegative=True),
                   trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
                   wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
                   bit_torque=values.get("bit_torque") or 0.0, joint_length=_joint_length(values))
+    except KeyboardInterrupt:
+        _say_interrupted(out, before)
+        raise
     except (DrillingError, ValueError) as exc:
         raise click.UsageError(str(exc)) from None
     except ConvergenceError as exc:
@@ -262,6 +267,19 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     for j, mu in enumerate(br.mus):
         click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
     click.echo(f"plot {png}")
+
+
+def _say_interrupted(out, before) -> None:
+    """An interrupted trip's line: how many depths its file holds (as an interrupted trace says), or that it
+    published none."""
+    from .common import file_identity
+    if out is None:
+        return
+    if file_identity(out) == before:
+        click.echo(f"interrupted before the first depth: {out} is as it was", err=True)
+        return
+    from ..branchfile import load_branch
+    click.echo(f"interrupted: {out} holds the {len(load_branch(out))} completed depth(s) of the trip", err=True)
 
 
 def _check_broom_outputs(png, h5, inputs, overwrite) -> None:
