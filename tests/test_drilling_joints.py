@@ -130,3 +130,12 @@ def test_a_zones_force_takes_in_the_light_contact_around_it():
     own = collocated_integral(td.system, td.x, td.params, b[i:i + 2])[0]
     assert round(own / 1e3, 1) == 3.2
     assert sum(z[2] for z in td.zones) == pytest.approx(td.side_force, rel=1e-12)   # the zones tile the span
+    # past that contact the torque profile rises toward the bit between collocation points (the spline whose
+    # derivative interpolates mu r p at the Gauss points): the README's 8.4 N m, 1.1e-3 of the surface torque
+    M, S = td.profile["torque"], td.profile["S"]
+    rise, run, where = 0.0, 0.0, None
+    for k, step in enumerate(np.diff(M) * np.sign(M[0] - M[-1])):
+        run = run + step if step > 0 else 0.0
+        if run > rise:
+            rise, where = run, S[k + 1]
+    assert round(rise, 1) == 8.4 and round(rise / abs(M[0]), 4) == 1.1e-3 and 800.0 < where < 800.05
