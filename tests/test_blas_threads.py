@@ -84,3 +84,21 @@ def test_a_solves_warning_points_at_the_callers_line_not_the_wrapper():
     with pytest.warns(RuntimeWarning, match="exceeds its guard") as seen:
         rodcont.solve(gamma=1.0, phi_L=6.0, N=3, k=3, adapt=False)
     assert {w.filename for w in seen.list if "exceeds its guard" in str(w.message)} == {__file__}
+
+
+def test_a_count_that_is_not_one_is_said_once(monkeypatch):
+    monkeypatch.setattr(blas, "_SAID", set())
+    monkeypatch.setenv("RODCONT_BLAS_THREADS", "two")
+    with pytest.warns(RuntimeWarning, match="RODCONT_BLAS_THREADS='two' is not a count of threads"):
+        assert blas._wanted() == 1
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert blas._wanted() == 1   # said once
+
+
+def test_a_command_says_a_count_that_is_not_one_in_its_own_words():
+    env = {**os.environ, "RODCONT_BLAS_THREADS": "x"}
+    r = subprocess.run([sys.executable, "-m", "rodcont", "--version"], env=env, capture_output=True, text=True)
+    assert r.returncode == 0
+    assert r.stderr == "rodcont: warning: RODCONT_BLAS_THREADS='x' is not a count of threads: rodcont runs on one\n"

@@ -57,14 +57,32 @@ def openblas_libraries() -> list[tuple]:
 
 
 def _wanted() -> int:
-    """The count ``RODCONT_BLAS_THREADS`` asks for (1 when unset or not a count; 0: leave BLAS alone)."""
+    """The count ``RODCONT_BLAS_THREADS`` asks for (1 when unset; 0: leave BLAS alone); a value that is not a count
+    is said once (a ``RuntimeWarning``) and read as 1."""
     raw = os.environ.get("RODCONT_BLAS_THREADS", "1").strip()
-    return int(raw) if raw.isdigit() else 1
+    if raw.isdigit():
+        return int(raw)
+    if raw not in _SAID:
+        _SAID.add(raw)
+        import warnings
+        warnings.warn(f"RODCONT_BLAS_THREADS={raw!r} is not a count of threads: rodcont runs on one",
+                      RuntimeWarning, stacklevel=3)
+    return 1
+
+
+_SAID: set = set()
 
 
 def command_environment(environ=os.environ) -> None:
-    """``OPENBLAS_NUM_THREADS`` set to :func:`_wanted`'s count for a command's process, unless already set."""
-    n = _wanted()
+    """``OPENBLAS_NUM_THREADS`` set to :func:`_wanted`'s count for a command's process, unless already set (a
+    value that is not a count said as the command line says warnings)."""
+    import sys
+    import warnings
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        n = _wanted()
+    for w in said:
+        sys.stderr.write(f"rodcont: warning: {w.message}\n")
     if n:
         environ.setdefault("OPENBLAS_NUM_THREADS", str(n))
 
