@@ -204,3 +204,12 @@ def test_an_interrupted_trip_says_how_many_depths_its_file_holds(tmp_path, monke
     with pytest.raises(KeyboardInterrupt):
         run_drilling_trace(WELL, values, "depth", (100.0, 200.0), str(tmp_path / "u.h5"), points=5)
     assert "interrupted before the first depth" in capsys.readouterr().err
+
+
+def test_a_joint_length_giving_too_many_joints_is_refused_first(tmp_path):
+    # --joint-length 1e-4 at 600 m solved (4 s), then asked 45.8 GiB for 6 million joints and advised a smaller mesh
+    r = _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "600", "--joint-length", "1e-4",
+             "--joints", str(tmp_path / "j.csv"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "a joint length of 0.0001 m makes 6e+06 joints over 600 m: at most 100000" in r.stderr
+    assert not (tmp_path / "j.csv").exists() and "hook_load" not in r.stdout

@@ -139,3 +139,17 @@ def test_a_zones_force_takes_in_the_light_contact_around_it():
         if run > rise:
             rise, where = run, S[k + 1]
     assert round(rise, 1) == 8.4 and round(rise / abs(M[0]), 4) == 1.1e-3 and 800.0 < where < 800.05
+
+
+def test_off_bottom_the_bit_holds_no_force_along_the_hole_not_the_tilted_string():
+    # the README's figure: the bit condition puts no force along the hole's axis; the profile's axial force is
+    # along the string's own tangent, tilted at the bit, and reads -15.1 N there at 500 m pick-up (3e-5)
+    import os
+
+    from rodcont import drilling
+    examples = os.path.join(os.path.dirname(__file__), "..", "examples")
+    well = drilling.Well.from_toml(os.path.join(examples, "well_s3d.toml"))
+    string = drilling.DrillString.from_toml(os.path.join(examples, "drill_string.toml"))
+    td = drilling.torque_and_drag(well, string, 500.0, "pick-up")
+    assert td.profile["S"][-1] == 500.0 and round(float(td.profile["axial_force"][-1]), 1) == -15.1
+    assert abs(td.profile["axial_force"][-1]) < 4e-5 * td.hook_load

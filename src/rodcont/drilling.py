@@ -637,11 +637,25 @@ def _result(sysm, x, placed, op, mu, wob, bit_torque, err, well=None, string=Non
 JOINT_LENGTH = 9.14
 
 
+#: the most joints a string's table may have (a joint length of 1e-4 m at 600 m asked 6 million and ran out of
+#: memory after the solve, advising a smaller mesh: test_a_joint_length_giving_too_many_joints_is_refused_first)
+MAX_JOINTS = 100_000
+
+
+def check_joints(depth: float, joint_length: float) -> None:
+    """A :class:`DrillingError` (one line) unless ``joint_length`` is a positive number giving at most
+    :data:`MAX_JOINTS` joints over ``depth``."""
+    if not (math.isfinite(joint_length) and joint_length > 0):
+        raise DrillingError(f"the joint length must be a positive number, got {joint_length!r}")
+    if depth / joint_length > MAX_JOINTS:
+        raise DrillingError(f"a joint length of {joint_length:g} m makes {depth / joint_length:.3g} joints over "
+                            f"{depth:g} m: at most {MAX_JOINTS} (a longer --joint-length)")
+
+
 def joint_edges(depth: float, joint_length: float = JOINT_LENGTH) -> np.ndarray:
     """The joints' ends in MD from the rig down, ``0, ..., L - 2 l_j, L - l_j, L``: joints counted from the bit up
     (the string is made up from the bit), the top one cut at the rig (shorter than ``l_j``)."""
-    if not (math.isfinite(joint_length) and joint_length > 0):
-        raise DrillingError(f"the joint length must be a positive number, got {joint_length!r}")
+    check_joints(depth, joint_length)
     L = float(depth)
     n = math.ceil(L / joint_length * (1 - 1e-12))
     return np.concatenate([[0.0], L - joint_length * np.arange(n - 1, 0, -1), [L]])

@@ -85,7 +85,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     ``values["joints"]``: the joints' table as CSV (:func:`write_joints`); ``out``: the equilibrium as a one-point
     file in a trip's layout (:func:`rodcont.drivers.trip.write_point`, read by ``rodcont export``). Returns the
     :class:`rodcont.drilling.TorqueDrag`."""
-    from ..drilling import DrillingError, torque_and_drag
+    from ..drilling import DrillingError, check_joints, torque_and_drag
     from ..drivers.solve import ConvergenceError
     from ..loads import motion_name
     if conduit is None:
@@ -95,6 +95,10 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
                                                  bool(values.get("wob") or values.get("bit_torque")))
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
     joint_length = _joint_length(values)
+    try:  # before the solve: a table of millions of joints ran out of memory after it
+        check_joints(depth, joint_length)
+    except DrillingError as exc:
+        raise click.UsageError(str(exc)) from None
     from ..branchfile import BranchFileError, check_output
     for path, what in ((values.get("joints"), "--joints"), (out, "--out")):
         if path is None:
