@@ -1,5 +1,6 @@
 import os
 
+import pytest
 from hypothesis import settings
 
 # The tests run many small dense factorisations; on a shared 2-core machine
@@ -46,3 +47,22 @@ def assert_tangent_matches_differences(disc, x, p, h):
     pm[0] -= h
     assert np.allclose(Fp, (disc.residual(x, pp) - disc.residual(x, pm)) / (2 * h), atol=1e-7)
     assert np.allclose(F, disc.residual(x, p), atol=1e-13)
+
+
+@pytest.fixture
+def interrupt_solve(monkeypatch):
+    """``interrupt_solve(n)``: rodcont.drilling.torque_and_drag raises KeyboardInterrupt on its n-th call (a Ctrl-C
+    between two depths of a trip), the calls before it solved as usual."""
+    import rodcont.drilling as drilling
+    real = drilling.torque_and_drag
+
+    def arm(n):
+        calls = []
+
+        def interrupted(*args, **kw):
+            calls.append(1)
+            if len(calls) == n:
+                raise KeyboardInterrupt
+            return real(*args, **kw)
+        monkeypatch.setattr(drilling, "torque_and_drag", interrupted)
+    return arm

@@ -123,7 +123,7 @@ def test_broomstick_with_an_unwritable_out_is_a_one_line_error_leaving_no_file(t
     assert os.listdir(tmp_path) == []
 
 
-def test_an_interrupted_trip_file_does_not_claim_its_bound(tmp_path, monkeypatch):
+def test_an_interrupted_trip_file_does_not_claim_its_bound(tmp_path, interrupt_solve):
     # seen: Ctrl-C (or SIGTERM) during 'rodcont trace --param depth --range 300 600' leaves a file with points to
     # 420 m whose status is 'bound' and stop_reason 'parameter bound depth = 600 reached'
     import h5py
@@ -131,15 +131,7 @@ def test_an_interrupted_trip_file_does_not_claim_its_bound(tmp_path, monkeypatch
     import rodcont.drilling as drilling
     from rodcont.drivers.trip import trip
     well, string = drilling.Well.from_toml(WELL), drilling.DrillString.from_toml(STRING)
-    real, calls = drilling.torque_and_drag, []
-
-    def interrupted_on_the_third(*args, **kw):
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        return real(*args, **kw)
-
-    monkeypatch.setattr(drilling, "torque_and_drag", interrupted_on_the_third)
+    interrupt_solve(3)
     out = str(tmp_path / "t.h5")
     with pytest.raises(KeyboardInterrupt):
         trip(well, string, (100.0, 200.0), "slack-off", points=5, out=out)

@@ -181,26 +181,16 @@ def test_a_first_mesh_above_the_cap_is_refused_in_one_line(tmp_path):
     assert not (tmp_path / "p.h5").exists()
 
 
-def test_an_interrupted_trip_says_how_many_depths_its_file_holds(tmp_path, monkeypatch, capsys):
-    import rodcont.drilling as drilling
+def test_an_interrupted_trip_says_how_many_depths_its_file_holds(tmp_path, interrupt_solve, capsys):
     from rodcont.cli.drilling import DRILLING_KEYS, run_drilling_trace
-    real, calls = drilling.torque_and_drag, []
-
-    def interrupted_on_the_third(*args, **kw):
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        return real(*args, **kw)
-
-    monkeypatch.setattr(drilling, "torque_and_drag", interrupted_on_the_third)
+    interrupt_solve(3)
     values = {key: None for key in DRILLING_KEYS}
     values["string"] = STRING
     out = str(tmp_path / "t.h5")
     with pytest.raises(KeyboardInterrupt):
         run_drilling_trace(WELL, values, "depth", (100.0, 200.0), out, points=5)
     assert "interrupted: " + out + " holds the 2 completed depth(s) of the trip" in capsys.readouterr().err
-    calls.clear()
-    monkeypatch.setattr(drilling, "torque_and_drag", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    interrupt_solve(1)
     with pytest.raises(KeyboardInterrupt):
         run_drilling_trace(WELL, values, "depth", (100.0, 200.0), str(tmp_path / "u.h5"), points=5)
     assert "interrupted before the first depth" in capsys.readouterr().err
@@ -213,3 +203,7 @@ def test_a_joint_length_giving_too_many_joints_is_refused_first(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "a joint length of 0.0001 m makes 6e+06 joints over 600 m: at most 100000" in r.stderr
     assert not (tmp_path / "j.csv").exists() and "hook_load" not in r.stdout
+    r = _run("trace", "--conduit", WELL, "--string", STRING, "--param", "depth", "--range", "300", "600",
+             "--joint-length", "1e-4", "--out", str(tmp_path / "t.h5"))   # a trip too, before its first depth
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "makes 6e+06 joints over 600 m" in r.stderr and not (tmp_path / "t.h5").exists()

@@ -500,7 +500,7 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     from .loads import Friction
     from .system import check_number
     wob, bit_torque = check_number("wob", wob, nonnegative=True), check_number("bit_torque", bit_torque)
-    op = Operation.named(operation, trip_speed, rpm) if isinstance(operation, str) else operation
+    op = operation if isinstance(operation, Operation) else Operation.named(operation, trip_speed, rpm)
     if op.name != "drill" and (wob or bit_torque):
         raise DrillingError(f"weight and torque on bit are for drilling (the bit on bottom), not {op.name}")
     placed = place_string(well, string, depth)

@@ -240,8 +240,9 @@ class Operation:
     def named(cls, name: str | None, trip_speed: float | None = None, rpm: float | None = None) -> Operation:
         """An operation of :data:`OPERATIONS` by name (None: the one the motion names, :func:`motion_name`);
         ``trip_speed``/``rpm`` replace its motion (combined), and may not contradict the name: pick-up trips out
-        (``V > 0``), slack-off in (``V < 0``), rotate and drill turn (``rpm != 0``), static is at rest (``--operation
-        pick-up --trip-speed -0.5`` solved a slack-off and printed pick-up: test_the_printed_operation_is_...)."""
+        (``V > 0``), slack-off in (``V < 0``), rotate turns (``rpm != 0``), drill has the bit on bottom (``V <= 0``),
+        static is at rest (``--operation pick-up --trip-speed -0.5`` solved a slack-off and printed pick-up:
+        test_the_printed_operation_is_the_motion_solved)."""
         for what, v in (("trip_speed", trip_speed), ("rpm", rpm)):
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
                 raise ValueError(f"{what} must be a finite number, got {v!r}")

@@ -85,7 +85,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     ``values["joints"]``: the joints' table as CSV (:func:`write_joints`); ``out``: the equilibrium as a one-point
     file in a trip's layout (:func:`rodcont.drivers.trip.write_point`, read by ``rodcont export``). Returns the
     :class:`rodcont.drilling.TorqueDrag`."""
-    from ..drilling import DrillingError, check_joints, torque_and_drag
+    from ..drilling import DrillingError, torque_and_drag
     from ..drivers.solve import ConvergenceError
     from ..loads import motion_name
     if conduit is None:
@@ -94,11 +94,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     op = values.get("operation") or motion_name(values.get("trip_speed"), values.get("rpm"),
                                                  bool(values.get("wob") or values.get("bit_torque")))
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
-    joint_length = _joint_length(values)
-    try:  # before the solve: a table of millions of joints ran out of memory after it
-        check_joints(depth, joint_length)
-    except DrillingError as exc:
-        raise click.UsageError(str(exc)) from None
+    joint_length = _joint_length(values, depth)
     from ..branchfile import BranchFileError, check_output
     for path, what in ((values.get("joints"), "--joints"), (out, "--out")):
         if path is None:
@@ -134,9 +130,17 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     return r
 
 
-def _joint_length(values: dict) -> float:
+def _joint_length(values: dict, depth: float) -> float:
+    """``--joint-length`` (default 9.14 m), refused in one line before any solve where it makes too many joints
+    over ``depth`` (a table of millions ran out of memory after the solve)."""
+    from ..drilling import DrillingError, check_joints
     v = values.get("joint_length")
-    return JOINT_LENGTH if v is None else _check("joint-length", v, positive=True)
+    length = JOINT_LENGTH if v is None else _check("joint-length", v, positive=True)
+    try:
+        check_joints(depth, length)
+    except DrillingError as exc:
+        raise click.UsageError(str(exc)) from None
+    return length
 
 
 def _echo_joints(r, joint_length: float, path: str | None, echo) -> None:
@@ -210,12 +214,13 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
                                      else "slack-off")
     from .common import file_identity
     before = file_identity(out) if out is not None else None
+    joint_length = _joint_length(values, b)
     try:
         br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
                   mu=_check("friction", values.get("friction"), nonnegative=True),
                   trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
                   wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
-                  bit_torque=values.get("bit_torque") or 0.0, joint_length=_joint_length(values))
+                  bit_torque=values.get("bit_torque") or 0.0, joint_length=joint_length)
     except KeyboardInterrupt:
         _say_interrupted(out, before)
         raise
