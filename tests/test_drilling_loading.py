@@ -32,3 +32,48 @@ def test_the_softer_laws_loading_reaches_the_wall_laws_equilibrium(monkeypatch):
     (soft, xs), (own, xo) = solved.values()
     assert soft == pytest.approx(own, rel=1e-10)
     assert np.max(np.abs(xs - xo)) <= 1e-10 * np.max(np.abs(xo))
+
+
+def _slack_2875():
+    well = drilling.Well.from_toml(os.path.join(EXAMPLES, "well_s3d.toml"))
+    string = drilling.DrillString.from_toml(os.path.join(EXAMPLES, "drill_string.toml"))
+    placed, op = drilling.place_string(well, string, 2875.0), Operation.named("slack-off")
+    return placed, op, well.eps
+
+
+def _recorded_homotopies(monkeypatch):
+    import rodcont.drivers.solve as solve_driver
+    calls, homotopy = [], solve_driver._homotopy
+    monkeypatch.setattr(solve_driver, "_homotopy", lambda s, x, p, tol, stages, confirm: calls.append(
+        (s.disc.N, stages[0])) or homotopy(s, x, p, tol, stages, confirm))
+    return calls
+
+
+def test_a_cold_start_whose_softest_law_fails_on_the_coarse_mesh_raises_the_load_without_retrying_it(monkeypatch):
+    from rodcont.drivers.solve import ConvergenceError
+    from rodcont.loads import Friction
+    placed, op, eps = _slack_2875()
+    friction = Friction(0.25, placed.radius, op)
+    calls = _recorded_homotopies(monkeypatch)
+    with np.errstate(all="ignore"):
+        s, x = drilling._cold_start(placed, friction, 0.25, op, 0.0, 0.0, eps, 300, 5, None, 1e-10)
+        assert calls[0] == (159, 0.1) and (300, 0.1) not in calls   # the coarse mesh's softest stage failed
+        assert s.model.wall.eps == eps and np.max(np.abs(s.disc.residual(x, s.base))) < 1e-6
+        # what the skip spares: the same soft law from the same guess on the mesh itself fails as well
+        sysm = drilling.build_system(placed, friction, 0.0, 0.0, eps, 300, 5)
+        with pytest.raises(ConvergenceError, match="eps = 0.1"):
+            drilling.settle(sysm, sysm.model.initial_guess(sysm.disc, 0.0), 1e-10, coarsen=1)
+
+
+def test_where_the_load_cannot_be_raised_the_cold_start_runs_the_homotopy_it_skipped(monkeypatch):
+    from rodcont.drivers.solve import ConvergenceError
+    from rodcont.loads import Friction
+    placed, op, eps = _slack_2875()
+
+    def fails(*a):
+        raise ConvergenceError("no equilibrium with the load raised")
+    monkeypatch.setattr(drilling, "_loaded_gradually", fails)
+    calls = _recorded_homotopies(monkeypatch)
+    with np.errstate(all="ignore"), pytest.raises(ConvergenceError, match="eps = 0.1"):
+        drilling._cold_start(placed, Friction(0.25, placed.radius, op), 0.25, op, 0.0, 0.0, eps, 300, 5, None, 1e-10)
+    assert calls == [(159, 0.1), (300, 0.1)]

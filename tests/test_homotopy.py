@@ -1,6 +1,8 @@
 """The contact homotopy of settle_in_conduit on a coarser mesh (issues 23, 24): fewer factorisations of the mesh's
 own Jacobian, the same equilibrium as the homotopy run on the mesh itself."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,8 @@ import rodcont.linalg as linalg
 from rodcont import drilling
 from rodcont.loads import Friction, Operation
 from short_well import COLLAR, HOLE, PIPE, STATIONS
+
+EXAMPLES = os.path.join(os.path.dirname(__file__), "..", "examples")
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +81,29 @@ def test_where_the_coarse_homotopy_fails_the_one_on_the_mesh_itself_gives_its_ve
 def test_a_mesh_too_small_to_coarsen_runs_the_homotopy_on_itself():
     assert solve_driver._coarse_system(type("S", (), {"disc": type("D", (), {"N": 2 * solve_driver.COARSE_MIN - 1})})(),
                                        None) is None
+
+
+def _two_rungs(sysm, coarsen, stages):
+    """The ladder before its middle rung: every c-th breakpoint, then the mesh itself at the last stage."""
+    c = solve_driver._coarsening(sysm.disc.N, coarsen)
+    return [(solve_driver._coarse_system(sysm, c), stages), (sysm, stages[-1:])]
+
+
+def test_the_middle_rung_spares_the_mesh_itself_where_the_coarse_mesh_misplaced_the_contacts(monkeypatch):
+    # examples/well_s3d.toml's 1000 m slack-off (mu 0.25) on its first mesh, as torque_and_drag starts it
+    well = drilling.Well.from_toml(os.path.join(EXAMPLES, "well_s3d.toml"))
+    string = drilling.DrillString.from_toml(os.path.join(EXAMPLES, "drill_string.toml"))
+    placed = drilling.place_string(well, string, 1000.0)
+    sysm = drilling.build_system(placed, Friction(0.25, placed.radius, Operation.named("slack-off")), 0.0, 0.0,
+                                 well.eps, drilling.first_mesh(placed, 0.0))
+    guess = sysm.model.initial_guess(sysm.disc, 0.0)
+    n = sysm.disc.size
+    ladder, sizes = _settled(sysm, guess, monkeypatch)
+    own, _ = _settled(sysm, guess, monkeypatch, coarsen=1)
+    monkeypatch.setattr(solve_driver, "_ladder", _two_rungs)
+    straight, straight_sizes = _settled(sysm, guess, monkeypatch)
+    # measured: 5 LUs of the mesh itself with the middle rung; carried straight from every 8th breakpoint its
+    # last stage took 27 and failed, and the homotopy on the mesh itself followed (61 in all)
+    assert sizes.count(n) <= 8 < 3 * 8 <= straight_sizes.count(n)
+    for x in (ladder, straight):
+        assert np.max(np.abs(x - own)) <= 1e-8 * (1 + np.max(np.abs(own)))

@@ -400,11 +400,12 @@ def carried_guess(sysm, prev: TorqueDrag):
     return sysm.disc.transfer(prev.x, src)
 
 
-def settle(sysm, x, tol: float = 1e-10):
+def settle(sysm, x, tol: float = 1e-10, **options):
     """The equilibrium inside the hole from a guess that may cross its wall: the contact law's smoothing from
-    0.1 down to the wall's own by factors of 10, Newton at each (a factor 100 stalls on a slack string)."""
+    0.1 down to the wall's own by factors of 10, Newton at each (a factor 100 stalls on a slack string);
+    ``options`` go to :func:`rodcont.drivers.solve.settle_in_conduit`."""
     from .drivers.solve import settle_in_conduit
-    return settle_in_conduit(sysm, x, sysm.base, tol, factor=10.0)
+    return settle_in_conduit(sysm, x, sysm.base, tol, factor=10.0, **options)
 
 
 def _estimate(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3) -> tuple:
@@ -495,7 +496,6 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     is below ``max_error`` and the side force's below ``max_side_force_error``. ``force_scale``: the contact
     law's (default :func:`_force_scale`); ``start``: an equilibrium at a nearby depth to start from (its mesh and
     law carried down with the bit, :func:`carried_guess`; a cold start where Newton does not converge from it)."""
-    from .drivers.solve import ConvergenceError
     from .ends import bit_force
     from .loads import Friction
     from .system import check_number
@@ -511,14 +511,29 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
     with np.errstate(all="ignore"):
         sysm, x = _warm(placed, friction, T, bit_torque, well.eps, k, start, tol) if start is not None else (None, None)
         if x is None:
-            sysm = build_system(placed, friction, T, bit_torque, well.eps, N, k, force_scale=force_scale)
-            try:
-                x = settle(sysm, sysm.model.initial_guess(sysm.disc, T), tol)
-            except ConvergenceError:
-                sysm, x = _loaded_gradually(placed, mu, op, T, bit_torque, well.eps, N, k, sysm.model.contact_scale,
-                                            tol)
+            sysm, x = _cold_start(placed, friction, mu, op, T, bit_torque, well.eps, N, k, force_scale, tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
+
+
+def _cold_start(placed, friction, mu, op, T, bit_torque, eps, N, k, force_scale, tol) -> tuple:
+    """``(system, x)`` from the straight guess: settled (:func:`settle`), else with the load raised gradually
+    (:func:`_loaded_gradually`), else settled by the homotopy on the mesh itself, which a failure of the softest
+    law on the coarse mesh skipped (settle_in_conduit's softest_is_verdict)."""
+    from .drivers.solve import ConvergenceError
+    sysm = build_system(placed, friction, T, bit_torque, eps, N, k, force_scale=force_scale)
+    guess = sysm.model.initial_guess(sysm.disc, T)
+    try:
+        return sysm, settle(sysm, guess, tol, softest_is_verdict=True)
+    except ConvergenceError as exc:
+        at = getattr(exc, "at", None)
+        skipped = at is not None and at[0] is not sysm
+    try:
+        return _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, sysm.model.contact_scale, tol)
+    except ConvergenceError:
+        if not skipped:
+            raise
+    return sysm, settle(sysm, guess, tol, coarsen=1)
 
 
 def _mesh_size(N, N_max, placed: StringInWell, T: float) -> tuple:
@@ -556,14 +571,16 @@ def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol
     far past its Euler load), a string without either is (it hangs in tension). The load is raised under the softer
     law :data:`RAMP_EPS`, then the law stiffened to ``eps`` (:func:`rodcont.drivers.solve.settle_in_conduit`'s
     stages from there); where that fails, the load is raised under ``eps`` itself."""
-    from .drivers.solve import ConvergenceError, _homotopy
+    from .drivers.solve import ConvergenceError, _coarse_system, _ladder, climb
     soft = max(eps, RAMP_EPS)
     if soft == eps:
         return _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step)
     try:
-        _, x = _raise_load(placed, mu, op, T, bit_torque, soft, N, k, force_scale, tol, step)
         sysm = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, 1.0)
-        return sysm, _homotopy(sysm, x, sysm.base, tol, _stiffening(soft, eps), True)
+        coarse = _coarse_system(sysm, None)  # the load raised on it, the law stiffened up the ladder (_ladder)
+        raised, x = _raise_load(placed, mu, op, T, bit_torque, soft, N, k, force_scale, tol, step,
+                                None if coarse is None else coarse.disc.breakpoints)
+        return sysm, climb(_ladder(sysm, None, _stiffening(soft, eps)), x, raised, sysm.base, tol, True)
     except ConvergenceError:  # the softer law's path is no verdict: the wall's own is
         return _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step)
 
@@ -577,22 +594,24 @@ def _stiffening(soft: float, eps: float) -> list:
     return stages + [eps]  # the last stage the wall's own exactly
 
 
-def _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, lam):
-    """:func:`build_system` with the friction factor and the bit's force and torque ``lam`` times theirs."""
+def _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, lam, breakpoints=None):
+    """:func:`build_system` with the friction factor and the bit's force and torque ``lam`` times theirs (on
+    ``N`` subintervals or on ``breakpoints``)."""
     from .loads import Friction
     scaled = lam * mu if isinstance(mu, (int, float)) else tuple((a, lam * v) for a, v in mu)
     return build_system(placed, Friction(scaled, placed.radius, op), lam * T, lam * bit_torque, eps, N, k,
-                        force_scale=force_scale)
+                        force_scale=force_scale, breakpoints=breakpoints)
 
 
-def _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step):
-    """The load raised from 0 in steps of ``step`` under the law ``eps`` (:func:`_loaded_gradually`)."""
+def _raise_load(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol, step, breakpoints=None):
+    """``(system, x)``: the load raised from 0 in steps of ``step`` under the law ``eps`` (:func:`_loaded_gradually`),
+    on ``N`` subintervals or on ``breakpoints``."""
     from .drivers.solve import ConvergenceError
-    sysm = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, 0.0)
+    sysm = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, 0.0, breakpoints)
     x, lam = settle(sysm, sysm.model.initial_guess(sysm.disc, 0.0), tol), 0.0
     while lam < 1.0:
         nxt = min(1.0, lam + step)
-        trial = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, nxt)
+        trial = _loaded_system(placed, mu, op, T, bit_torque, eps, N, k, force_scale, nxt, breakpoints)
         r = trial.disc.newton(x, trial.base, tol=tol, max_iter=40)
         if r.converged:
             sysm, x, lam = trial, r.x, nxt

@@ -117,7 +117,8 @@ COARSEN, COARSE_MIN = 8, 128
 
 
 def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float = 1e-10,
-                      factor: float = 100.0, confirm: bool = True, coarsen: int | None = None) -> np.ndarray:
+                      factor: float = 100.0, confirm: bool = True, coarsen: int | None = None,
+                      softest_is_verdict: bool = False) -> np.ndarray:
     """An equilibrium inside the conduit from a guess that may cross its wall: homotopy in the smoothing.
 
     The contact law ``p (g + p/k) = mu`` (:mod:`rodcont.contact`) is solved
@@ -130,30 +131,61 @@ def settle_in_conduit(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float 
     solution is confirmed by Newton (``confirm``; off for a caller that confirms it itself). Returns the last
     stage's solution.
 
-    The stages run on a coarser mesh, every ``coarsen``-th breakpoint (default :data:`COARSEN`, fewer where the
-    coarse mesh would have under :data:`COARSE_MIN` subintervals; 1: none), and only the last is solved again
-    on ``sysm``'s own mesh from the coarse solution carried over; where that fails, the whole homotopy runs on
-    ``sysm``'s mesh as without it (the coarse path only chooses the start of the last stage's Newton).
+    The stages run on a ladder of meshes (:func:`_ladder`): all but the last on every ``coarsen``-th breakpoint
+    (default :data:`COARSEN`, fewer where the coarse mesh would have under :data:`COARSE_MIN` subintervals; 1:
+    none), the last two on every second one, the last on ``sysm``'s own mesh, each rung from the one before carried
+    over; where a rung fails, the whole homotopy runs on ``sysm``'s mesh as without it (the ladder only chooses the
+    start of the last stage's Newton). ``softest_is_verdict``: where the coarsest rung fails at the softest stage,
+    the ``ConvergenceError`` at once, for a caller with another path to try first (the same soft law from the same
+    guess on a finer mesh: the 3250 m slack-off's homotopy on its own mesh failed there too, after 3.3 s).
     """
     wall = sysm.model.wall
     stages = [0.1]
     while stages[-1] / factor > wall.eps:
         stages.append(stages[-1] / factor)
     stages.append(wall.eps)
-    coarse = _coarse_system(sysm, coarsen)
-    if coarse is not None and len(stages) > 1:
+    rungs = _ladder(sysm, coarsen, stages)
+    if len(rungs) > 1:
         try:
-            xc = _homotopy(coarse, coarse.disc.transfer(x, sysm.disc), p, tol, stages, False)
-            return _homotopy(sysm, sysm.disc.transfer(xc, coarse.disc), p, tol, stages[-1:], confirm)
-        except ConvergenceError:
-            pass  # the coarse mesh is no verdict: the homotopy on the mesh itself is
+            return climb(rungs, x, sysm, p, tol, confirm)
+        except ConvergenceError as exc:  # a coarser mesh is no verdict: the homotopy on the mesh itself is
+            if softest_is_verdict and getattr(exc, "at", None) == (rungs[0][0], stages[0]):
+                raise
     return _homotopy(sysm, x, p, tol, stages, confirm)
+
+
+def climb(rungs: list, x: np.ndarray, source: RodSystem, p: np.ndarray, tol: float, confirm: bool) -> np.ndarray:
+    """The stages of each rung of ``rungs`` (:func:`_ladder`) from ``x`` on ``source``'s mesh, each rung from the
+    one before carried over; the last rung's solution (confirmed by Newton where ``confirm``)."""
+    for rung, its_stages in rungs:
+        x = _homotopy(rung, rung.disc.transfer(x, source.disc), p, tol, its_stages, confirm and rung is rungs[-1][0])
+        source = rung
+    return x
+
+
+def _ladder(sysm: RodSystem, coarsen: int | None, stages: list) -> list:
+    """``[(system, stages)]`` from the coarsest mesh to ``sysm``'s own: the stages but the last on every c-th
+    breakpoint, the last two on every second (where c > 2), the last on ``sysm``. A coarse solution of the stiff
+    law misplaces the contacts the mesh itself resolves: carried straight to the mesh of examples/well_s3d.toml's
+    3250 m pick-up its last stage failed and the solve took 161 LUs in all, 49 with the middle rung, 4 of them on
+    the mesh itself (test_homotopy.py)."""
+    c = _coarsening(sysm.disc.N, coarsen)
+    if c < 2 or len(stages) < 2:
+        return [(sysm, stages)]
+    rungs = [(_coarse_system(sysm, c), stages[:-1])]
+    if c > 2:
+        rungs.append((_coarse_system(sysm, 2), stages[-2:]))
+    return rungs + [(sysm, stages[-1:] if c > 2 else stages[-2:])]
+
+
+def _coarsening(N: int, coarsen: int | None) -> int:
+    """Every how many breakpoints the coarsest mesh keeps (:data:`COARSEN`, fewer on a small mesh; < 2: none)."""
+    return min(COARSEN, N // COARSE_MIN) if coarsen is None else int(coarsen)
 
 
 def _coarse_system(sysm: RodSystem, coarsen: int | None) -> RodSystem | None:
     """``sysm`` on every ``coarsen``-th of its breakpoints (and its stations), or None for no coarser mesh."""
-    N = sysm.disc.N
-    c = min(COARSEN, N // COARSE_MIN) if coarsen is None else int(coarsen)
+    c = _coarsening(sysm.disc.N, coarsen)
     if c < 2:
         return None
     b = sysm.disc.breakpoints
@@ -174,8 +206,10 @@ def _homotopy(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float, stages:
             elif confirm and eps == stages[-1]:
                 r = disc.newton(r.x, p, tol=tol, max_iter=60)
             if not r.converged:
-                raise ConvergenceError(f"no equilibrium found inside the conduit (contact smoothing eps = "
+                exc = ConvergenceError(f"no equilibrium found inside the conduit (contact smoothing eps = "
                                        f"{eps:g}): {r.message}")
+                exc.at = (sysm, eps)  # where it failed (settle_in_conduit's softest_is_verdict)
+                raise exc
             x = r.x
     finally:
         model.wall = wall
