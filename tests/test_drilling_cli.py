@@ -42,6 +42,7 @@ def test_broomstick_writes_the_plot_and_the_points(tmp_path):
         assert f["hook_load"][0, 2, 0] == pytest.approx(bf * (200 * 2189 + 100 * 624), rel=2e-3)
     assert png.stat().st_size > 10000
     assert "hook_load pick-up 0.2 " in r.stdout
+    assert f"wrote {h5}" in r.stderr.splitlines() and "wrote" not in r.stdout   # stdout keeps its name value lines
 
 
 @pytest.mark.parametrize("args, message", [

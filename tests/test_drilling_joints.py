@@ -153,3 +153,12 @@ def test_off_bottom_the_bit_holds_no_force_along_the_hole_not_the_tilted_string(
     td = drilling.torque_and_drag(well, string, 500.0, "pick-up")
     assert td.profile["S"][-1] == 500.0 and round(float(td.profile["axial_force"][-1]), 1) == -15.1
     assert abs(td.profile["axial_force"][-1]) < 4e-5 * td.hook_load
+
+
+def test_joint_ends_read_as_the_decimals_of_the_depth_and_the_joint_length():
+    # before: 500 - 53 * 9.14 printed as 15.579999999999984 (in max_joint_side_force_md and --joints)
+    from rodcont.drilling import joint_edges
+    e = joint_edges(500.0)
+    assert repr(float(e[2])) == "15.58" and e[0] == 0.0 and e[-1] == 500.0
+    assert all(len(repr(float(v)).split(".")[1]) <= 2 for v in e)
+    assert np.max(np.abs(e[1:-1] - (500.0 - 9.14 * np.arange(e.size - 2, 0, -1)))) < 1e-9

@@ -677,7 +677,8 @@ def joint_edges(depth: float, joint_length: float = JOINT_LENGTH) -> np.ndarray:
     check_joints(depth, joint_length)
     L = float(depth)
     n = math.ceil(L / joint_length * (1 - 1e-12))
-    return np.concatenate([[0.0], L - joint_length * np.arange(n - 1, 0, -1), [L]])
+    # rounded to the nanometre: the ends print as the decimals a user gave (15.58, not 15.579999999999984)
+    return np.concatenate([[0.0], np.round(L - joint_length * np.arange(n - 1, 0, -1), 9), [L]])
 
 
 def collocated_integral(sysm, x, p, edges) -> np.ndarray:

@@ -1225,10 +1225,7 @@ class EulerianRod:
         pressure = self.wall.pressure(D1, D2, self.contact_scale, S)
         m, alpha, n, d3 = self._axial_quantities(S, z, p)
         axial = _dot(z[Jet.F], d3)
-        # the wall's force as the collocation equations carry it: its pressure at the collocation points alone
-        # (a point contact narrower than an interval is misread by a sampling; test_the_total_side_force_...)
-        zc = disc.jets(x)
-        at_points = self.wall.pressure(zc[Jet.D1[0]], zc[Jet.D2[0]], self.contact_scale, disc.S)
+        at_points = self.pressure_at_points(disc, x)
         zones = contact_zones(S, pressure, self.wall.contact_level * self.contact_scale,
                               lambda edges: disc.integrate_between(at_points, edges))
         out = dict(S=S, gap=gap, pressure=pressure, axial_force=axial, torque=m, zones=zones,
@@ -1236,6 +1233,13 @@ class EulerianRod:
         if key is not None:
             self._last_contact = (key, out)
         return out
+
+    def pressure_at_points(self, disc: Collocation, x: np.ndarray) -> np.ndarray:
+        """The wall's force per length at the collocation points, where alone the equations load the rod (a point
+        contact narrower than an interval is misread by a sampling; test_the_total_side_force_...); its Gauss
+        rule is :meth:`contact`'s ``side_force``."""
+        z = disc.jets(x)
+        return self.wall.pressure(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, disc.S)
 
     def stretch_factor_min(self, disc: Collocation, x: np.ndarray, p: np.ndarray) -> float:
         """Smallest stretch factor ``alpha = 1 + F.d3/EA`` at the collocation points."""

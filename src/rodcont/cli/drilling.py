@@ -276,6 +276,8 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     for j, mu in enumerate(br.mus):
         click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
     click.echo(f"plot {png}")
+    if h5 is not None:
+        click.echo(f"wrote {h5}", err=True)  # as solve and trace say their file
 
 
 def _say_interrupted(out, before) -> None:
