@@ -43,6 +43,11 @@ def test_broomstick_writes_the_plot_and_the_points(tmp_path):
     assert png.stat().st_size > 10000
     assert "hook_load pick-up 0.2 " in r.stdout
     assert f"wrote {h5}" in r.stderr.splitlines() and "wrote" not in r.stdout   # stdout keeps its name value lines
+    lines = r.stdout.splitlines()   # the README's: hook_load per operation and mu, the rotating torque, the plot
+    names = [f"hook_load {op} {mu}" for op in ("pick-up", "slack-off", "rotate") for mu in ("0.2", "0.3")]
+    assert [ln.rsplit(" ", 1)[0] for ln in lines] == names + ["surface_torque rotate 0.2", "surface_torque rotate 0.3",
+                                                              "plot"]
+    assert lines[-1] == f"plot {png}"
 
 
 @pytest.mark.parametrize("args, message", [
