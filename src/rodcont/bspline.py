@@ -162,9 +162,14 @@ class SplineSpace:
         """Coefficients of the least-squares fit of ``f`` (sparse normal equations) on 3 points per basis
         function spread evenly, and ``order`` more inside every subinterval: a short subinterval (stations
         close together) would otherwise hold too few points and make the normal equations singular."""
-        b = self.breakpoints
-        inner = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, self.order + 2)[None, 1:-1]).ravel()
-        x = np.union1d(np.union1d(np.linspace(b[0], b[-1], 3 * self.dim), b), inner)
-        A = self.matrix(x)
+        key = self.knots.tobytes()  # a copied space moved along S (rodcont.drilling.carried_guess) has new knots
+        fit = getattr(self, "_fit", None)
+        if fit is None or fit[0] != key:  # the points, the matrix, its normal equations' LU: once per space
+            b = self.breakpoints
+            inner = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, self.order + 2)[None, 1:-1]).ravel()
+            x = np.union1d(np.union1d(np.linspace(b[0], b[-1], 3 * self.dim), b), inner)
+            A = self.matrix(x)
+            fit = self._fit = (key, x, A.T.tocsr(), spla.splu((A.T @ A).tocsc(), permc_spec="COLAMD"))
+        _, x, At, lu = fit
         y = np.broadcast_to(np.asarray(f(x), dtype=float), x.shape)
-        return spla.spsolve((A.T @ A).tocsc(), A.T @ y)
+        return lu.solve(At @ y) if np.any(y) else np.zeros(self.dim)  # zero data: the fit is exactly zero
