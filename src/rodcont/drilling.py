@@ -409,24 +409,28 @@ def settle(sysm, x, tol: float = 1e-10, **options):
 
 
 def _estimate(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3) -> tuple:
-    """``(error, side force's error, penetration)`` of a solution (:class:`rodcont.mesh.ErrorEstimator`, the
-    richer problem solved to convergence where its one step puts either estimate above its guard; the
-    penetration as :func:`rodcont.contact.penetration`, but not at a clearance's step: there the law is not
-    collocated, the larger pipe's end carries a point contact and the spline's value at the breakpoint leans into
-    the wall while the law holds on each side; refining, not a stiffer law, resolves it)."""
+    """``(error, side force's error)`` of a solution (:class:`rodcont.mesh.ErrorEstimator`, the richer problem
+    solved to convergence where its one step puts either estimate above its guard)."""
     from .mesh import ErrorEstimator
     est = ErrorEstimator(sysm, watch=True)
     err = est.estimate(x, sysm.value())
     if _ratio(err, est.watched.get("side_force", math.nan), max_error, max_side_force_error) > 1.0:
         err = est.converged_estimate()
+    return err, est.watched.get("side_force", math.nan)
+
+
+def _penetration(sysm, x) -> float:
+    """How deep the string sits inside the wall, over the clearance (:func:`rodcont.contact.penetration`), but not
+    at a clearance's step: there the law is not collocated, the larger pipe's end carries a point contact and the
+    spline's value at the breakpoint leans into the wall while the law holds on each side; refining, not a stiffer
+    law, resolves it."""
     con = sysm.model.contact(sysm.disc, x, sysm.base)
     S, wall = con["S"], sysm.model.wall
     keep = np.ones(S.size, bool)
     if isinstance(wall, SteppedWall):
         steps = np.array([a for a, _ in wall.clearance[1:-1]])
         keep = np.min(np.abs(S[:, None] - steps[None, :]), axis=1) > 1e-9 * S[-1]
-    pen = float(np.max(-con["gap"][keep] / wall.clearance_at(S[keep])))
-    return err, est.watched.get("side_force", math.nan), pen
+    return float(np.max(-con["gap"][keep] / wall.clearance_at(S[keep])))
 
 
 def _ratio(err, sf, max_error, max_side_force_error) -> float:
@@ -442,17 +446,18 @@ def adapt(sysm, x, max_error: float = 1e-6, max_side_force_error: float = 1e-3, 
     from .drivers.solve import stiffen_contact
     from .mesh import adapted_mesh
     for _ in range(8):
-        err, sf, pen = _estimate(sysm, x, max_error, max_side_force_error)
+        pen = _penetration(sysm, x)  # first: an estimate of a law about to be stiffened is thrown away (1.8 s)
         if pen > MAX_PENETRATION:
             x = stiffen_contact(sysm, x, sysm.base, sysm.model.contact_scale * pen / (MAX_PENETRATION / 10), tol)
             continue
+        err, sf = _estimate(sysm, x, max_error, max_side_force_error)
         ratio = _ratio(err, sf, max_error, max_side_force_error)
         if ratio <= 1.0 or sysm.disc.N >= N_max:
             return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
         b = adapted_mesh(sysm.disc.breakpoints, sysm.interval_defect(x, sysm.value()), sysm.disc.k,
                          ratio * max_error, max_error / 4, N_max=N_max)
         sysm, x = _remeshed(sysm, x, b, tol)
-    err, sf, _ = _estimate(sysm, x, max_error, max_side_force_error)
+    err, sf = _estimate(sysm, x, max_error, max_side_force_error)
     ratio = _ratio(err, sf, max_error, max_side_force_error)
     return _said(sysm, x, err, sf, ratio, max_error, max_side_force_error)
 
@@ -569,8 +574,9 @@ def _loaded_gradually(placed, mu, op, T, bit_torque, eps, N, k, force_scale, tol
     Newton from the previous step's solution, the step halved where Newton fails (down to 1/64): a string compressed
     by its friction or its WOB near its buckling load is not reached from the straight guess on the axis (a column
     far past its Euler load), a string without either is (it hangs in tension). The load is raised under the softer
-    law :data:`RAMP_EPS`, then the law stiffened to ``eps`` (:func:`rodcont.drivers.solve.settle_in_conduit`'s
-    stages from there); where that fails, the load is raised under ``eps`` itself."""
+    law :data:`RAMP_EPS` on the coarse rung of the homotopy's ladder, then the law stiffened to ``eps`` up the
+    ladder (:func:`rodcont.drivers.solve.climb`); where that fails, the load is raised under ``eps`` itself on the
+    mesh itself."""
     from .drivers.solve import ConvergenceError, _coarse_system, _ladder, climb
     soft = max(eps, RAMP_EPS)
     if soft == eps:
