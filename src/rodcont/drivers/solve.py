@@ -199,12 +199,7 @@ def _homotopy(sysm: RodSystem, x: np.ndarray, p: np.ndarray, tol: float, stages:
     try:
         for eps in stages:
             model.wall = dataclasses.replace(wall, eps=eps)
-            r = chord_solve(lambda y: disc.linearise(y, p)[:2], lambda y: disc.residual(y, p), x, tol=tol,
-                            max_iter=60)
-            if not r.converged:  # the chord's failure is no verdict: Newton's, from the stage's start, is
-                r = disc.newton(x, p, tol=tol, max_iter=60)
-            elif confirm and eps == stages[-1]:
-                r = disc.newton(r.x, p, tol=tol, max_iter=60)
+            r = _chord_then_newton(disc, x, p, tol, confirm and eps == stages[-1])
             if not r.converged:
                 exc = ConvergenceError(f"no equilibrium found inside the conduit (contact smoothing eps = "
                                        f"{eps:g}): {r.message}")
@@ -229,7 +224,7 @@ def stiffen_contact(sysm: RodSystem, x: np.ndarray, p: np.ndarray, P: float, tol
     while done < target:
         nxt = min(done + step, target)
         model.contact_scale = P0 * 10.0**(up * nxt)
-        r = sysm.disc.newton(x, p, tol=tol, max_iter=60)
+        r = _chord_then_newton(sysm.disc, x, p, tol, confirm=nxt >= target)
         if r.converged:
             x, done = r.x, nxt
             continue
@@ -242,6 +237,15 @@ def stiffen_contact(sysm: RodSystem, x: np.ndarray, p: np.ndarray, P: float, tol
                                    f"{model.contact_scale:.4g} (aiming at {P:.4g}): {r.message}")
     _set_force_scale(sysm, P)
     return x
+
+
+def _chord_then_newton(disc, x: np.ndarray, p: np.ndarray, tol: float, confirm: bool) -> NewtonResult:
+    """One stage of a homotopy: the chord (:func:`rodcont.linalg.chord_solve`), Newton from the stage's start where
+    it fails (the chord's failure is no verdict), Newton from its solution where ``confirm``."""
+    r = chord_solve(lambda y: disc.linearise(y, p)[:2], lambda y: disc.residual(y, p), x, tol=tol, max_iter=60)
+    if not r.converged:
+        return disc.newton(x, p, tol=tol, max_iter=60)
+    return disc.newton(r.x, p, tol=tol, max_iter=60) if confirm else r
 
 
 def _set_force_scale(sysm: RodSystem, P: float) -> None:
