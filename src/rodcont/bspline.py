@@ -24,7 +24,6 @@ import functools
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 
 @functools.cache
@@ -169,7 +168,8 @@ class SplineSpace:
             inner = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, self.order + 2)[None, 1:-1]).ravel()
             x = np.union1d(np.union1d(np.linspace(b[0], b[-1], 3 * self.dim), b), inner)
             A = self.matrix(x)
-            fit = self._fit = (key, x, A.T.tocsr(), spla.splu((A.T @ A).tocsc(), permc_spec="COLAMD"))
+            from .linalg import superlu  # SuperLU's failures read as the solvers' are (out of memory: its size)
+            fit = self._fit = (key, x, A.T.tocsr(), superlu((A.T @ A).tocsc(), "COLAMD"))
         _, x, At, lu = fit
         y = np.broadcast_to(np.asarray(f(x), dtype=float), x.shape)
         return lu.solve(At @ y) if np.any(y) else np.zeros(self.dim)  # zero data: the fit is exactly zero

@@ -132,6 +132,18 @@ def is_out_of_memory(exc: BaseException) -> bool:
             or (isinstance(exc, SystemError) and "gstrf" in text))
 
 
+def superlu(A, ordering: str = "NATURAL"):
+    """SuperLU's factorisation of ``A`` (``scipy.sparse.linalg.splu``) with its failures read: out of memory a
+    ``MemoryError`` naming the size, anything else (``Factor is exactly singular``) a :class:`SingularMatrix`."""
+    try:
+        return spla.splu(A, permc_spec=ordering)
+    except (RuntimeError, SystemError) as exc:
+        if is_out_of_memory(exc):
+            n = A.shape[0]
+            raise MemoryError(f"the sparse LU of a {n} x {n} matrix did not fit in memory") from None
+        raise SingularMatrix(str(exc)) from None
+
+
 class LU:
     """Sparse LU of a square CSC matrix ``A`` (``Pr A Pc = L U``; natural column order by default).
 
@@ -153,13 +165,7 @@ class LU:
             A = A if sp.issparse(A) and A.format == "csc" else sp.csc_matrix(A)
             self._r = np.asarray(row_scale, float)
             A = csc_with_data(A, A.data * self._r[A.indices])
-        try:
-            self._lu = spla.splu(A, permc_spec=ordering)
-        except (RuntimeError, SystemError) as exc:  # SuperLU: "Factor is exactly singular", or out of memory
-            if is_out_of_memory(exc):
-                n = A.shape[0]
-                raise MemoryError(f"the sparse LU of a {n} x {n} matrix did not fit in memory") from None
-            raise SingularMatrix(str(exc)) from None
+        self._lu = superlu(A, ordering)
         self.n = A.shape[0]
         self._det = None
 
