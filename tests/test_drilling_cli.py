@@ -138,6 +138,11 @@ def test_solve_prints_the_side_force_per_joint_and_writes_the_joints(tmp_path):
     assert float(lines["max_joint_side_force"]) == t["side_force"][k]
     assert [float(v) for v in lines["max_joint_side_force_md"].split()] == [t["md_top"][k], t["md_bottom"][k]]
     assert float(lines["side_force"]) == pytest.approx(t["side_force"].sum(), rel=1e-3)
+    # the printed largest force per length is a row's, at an MD inside that row's joint (it had been the profile's
+    # own maximum, 7e-5 above every row at 500 m pick-up)
+    m = int(np.argmax(t["max_side_force_per_length"]))
+    assert float(lines["max_side_force_per_length"]) == t["max_side_force_per_length"][m] > 0
+    assert t["md_top"][m] <= float(lines["max_side_force_per_length_md"]) <= t["md_bottom"][m]
     bad = tmp_path / "bad.csv"
     r = _run("solve", "--string", STRING, "--conduit", WELL, "--depth", "305", "--joint-length", "0",
              "--joints", str(bad))

@@ -702,8 +702,8 @@ def joint_side_forces(td: TorqueDrag, joint_length: float = JOINT_LENGTH) -> dic
     law's pressure) as the collocation equations carry it (:func:`collocated_integral`: a point contact such as a
     collar's end on the wall gets the force the rod's balance has there). Arrays from the rig down: ``top``,
     ``bottom`` (MD, m), ``side_force`` (N), ``max_pressure`` (N/m, the largest ``p`` at 16 Gauss points of every
-    piece between the mesh's breakpoints and the joints' ends); their sum is the Gauss rule of the collocation
-    points over the string."""
+    piece between the mesh's breakpoints and the joints' ends and on the profile's grid) and ``max_pressure_md``
+    (where it is); their sum is the Gauss rule of the collocation points over the string."""
     sysm, x = td.system, td.x
     edges = joint_edges(td.depth, joint_length)
     force = collocated_integral(sysm, x, td.params, edges)
@@ -711,11 +711,13 @@ def joint_side_forces(td: TorqueDrag, joint_length: float = JOINT_LENGTH) -> dic
     g = np.polynomial.legendre.leggauss(16)[0]
     mid, half = 0.5 * (cuts[1:] + cuts[:-1]), 0.5 * np.diff(cuts)
     S = (mid[:, None] + half[:, None] * g[None, :]).ravel()
-    P = sysm.model.contact(sysm.disc, x, td.params, S=S)["pressure"].reshape(mid.size, g.size)
-    joint = np.searchsorted(edges, mid, side="right") - 1   # the joint each piece lies in
-    peak = np.zeros(edges.size - 1)
-    np.maximum.at(peak, joint, P.max(axis=1))
-    return dict(top=edges[:-1], bottom=edges[1:], side_force=force, max_pressure=peak)
+    P = sysm.model.contact(sysm.disc, x, td.params, S=S)["pressure"]
+    # the profile's samples too: solve prints its largest p, which must be a row's (it was 7e-5 above them all)
+    S, P = np.concatenate([S, td.profile["S"]]), np.concatenate([P, td.profile["pressure"]])
+    joint = np.clip(np.searchsorted(edges, S, side="right") - 1, 0, edges.size - 2)   # the joint each point lies in
+    order = np.lexsort((-P, joint))   # by joint, the largest p first
+    first = order[np.concatenate([[0], np.flatnonzero(np.diff(joint[order])) + 1])]
+    return dict(top=edges[:-1], bottom=edges[1:], side_force=force, max_pressure=P[first], max_pressure_md=S[first])
 
 
 # --------------------------------------------------------------------------

@@ -149,11 +149,10 @@ def _echo_joints(r, joint_length: float, path: str | None, echo) -> None:
     import numpy as np
 
     from ..drilling import joint_side_forces
-    P, S = r.profile["pressure"], r.profile["S"]
-    i = int(np.argmax(P))
-    echo(f"max_side_force_per_length {float(P[i])!r}")
-    echo(f"max_side_force_per_length_md {float(S[i])!r}")
     j = joint_side_forces(r, joint_length)
+    i = int(np.argmax(j["max_pressure"]))  # the largest p of the table's rows (and of the profile)
+    echo(f"max_side_force_per_length {float(j['max_pressure'][i])!r}")
+    echo(f"max_side_force_per_length_md {float(j['max_pressure_md'][i])!r}")
     k = int(np.argmax(j["side_force"]))
     echo(f"joint_length {joint_length!r}")
     echo(f"max_joint_side_force {float(j['side_force'][k])!r}")
