@@ -110,9 +110,9 @@ class Equilibrium:
         return self.system.model.centreline(self.system.disc, self.x, S)
 
 
-#: the contact homotopy runs on every COARSEN-th breakpoint of a mesh (fewer where that leaves under COARSE_MIN
-#: subintervals), only the wall's own eps on the mesh itself: 11 of 51 LUs on the 3500 m drill string's 2936
-#: subintervals, the same equilibrium (bench.py --only drilling)
+#: the contact homotopy's coarsest rung is every COARSEN-th breakpoint of a mesh (fewer where that leaves under
+#: COARSE_MIN subintervals; _ladder): 4 of 41 LUs on the 3500 m drill string's own 2936 subintervals, 12 on every
+#: second breakpoint, 24 on every 8th, the same equilibrium (bench.py --only drilling)
 COARSEN, COARSE_MIN = 8, 128
 
 
