@@ -192,7 +192,7 @@ def test_every_console_block_is_checked():
 def test_console_blocks_print_what_the_readme_shows(ran):
     """Every line each command's README block shows, against what the command prints now."""
     assert len(ran) == sum(not isinstance(v, str) for v in CONSOLE.values())
-    for key, runs in ran.items():
+    for runs in ran.values():
         for argv, shown, (code, out, err) in runs:
             assert code == 0, f"rodcont {' '.join(argv)}: {err}"
             if shown:
@@ -423,4 +423,7 @@ def test_bvp_table_counts_and_rodcont_errors():
     errors = [abs(fold - ref.bratu_fold()["lam"]), abs(slope / ref.troesch_slope(10.0) - 1),
               abs(load / ref.elastica_load(1.0) - 1)]
     for shown, error in zip((bratu[2], troesch[1], elastica[1]), errors):
-        assert abs(math.log10(float(shown) / error)) < 1, (shown, error)
+        # at rounding level the machine sets the digits (6.7e-15 against the table's 9.9e-14 on another CPU): there
+        # the table's figure bounds the error to a factor 10; above it the figure is the error's, to a factor 10
+        low = float(shown) < 1e-12
+        assert (error < 10 * float(shown)) if low else abs(math.log10(float(shown) / error)) < 1, (shown, error)
