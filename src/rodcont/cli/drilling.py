@@ -121,6 +121,9 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
                     ("hook_load", r.hook_load), ("surface_torque", r.surface_torque), ("side_force", r.side_force),
                     ("contact_zones", len(r.zones)), ("error", r.error), ("N", r.N)):
         echo(f"{name} {v!r}" if isinstance(v, float) else f"{name} {v}")
+    from ..drilling import law_error
+    for name, v in law_error(r).items():  # the smoothing's, which the mesh's error does not see (1e-3 rotating)
+        echo(f"{name}_law_error {abs(v)!r}")
     _echo_joints(r, joint_length, values.get("joints"), echo)
     if out is not None:
         from ..drivers.trip import write_point
