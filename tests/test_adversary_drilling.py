@@ -139,3 +139,103 @@ def test_an_interrupted_trip_file_does_not_claim_its_bound(tmp_path, interrupt_s
         assert f["branch/depth"].shape[0] == 2
         assert f.attrs["status"] != "bound", f.attrs["stop_reason"]
         assert (f.attrs["status"], f.attrs["stop_reason"]) == ("interrupted", "interrupted")
+
+
+# ---- 2026-12-03 (stop 35): an adversary's findings on 1c65bd3, each seen as described ----------------------------
+def _one_line_error(r, *words):
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+    for w in words:
+        assert w in r.stderr, r.stderr
+
+
+def test_broomstick_refuses_a_friction_factor_given_twice(tmp_path):
+    # seen: exit 0, 'hook_load pick-up 0.25 8.063e-320': the second copy's cells were never filled
+    from rodcont.drivers.broomstick import broomstick
+    r = _run("broomstick", WELL, "--string", STRING, "--friction", "0.25", "0.25", "--depth", "300", "400",
+             "--points", "2", "-o", str(tmp_path / "b.png"), "--out", str(tmp_path / "b.h5"))
+    _one_line_error(r, "--friction 0.25 is given twice")
+    assert not os.listdir(tmp_path)
+    with pytest.raises(ValueError, match="given twice"):
+        broomstick(None, None, [300.0], [0.2, 0.2])
+
+
+def test_broomstick_refuses_a_negative_number_of_jobs(tmp_path):
+    # seen: exit 1, 'unexpected failure (ValueError: max_workers must be greater than 0); please report it'
+    r = _run("broomstick", WELL, "--string", STRING, "--friction", "0.25", "--depth", "300", "400", "--points", "2",
+             "-o", str(tmp_path / "b.png"), "--jobs", "-1")
+    _one_line_error(r, "--jobs")
+    assert not os.listdir(tmp_path)
+
+
+def test_a_weight_on_bit_beyond_the_pipes_axial_stiffness_is_refused(tmp_path):
+    # seen: exit 0, hook_load -999386316.67 with the stretch 1 + F/EA at -0.42 (the pipe shortened past zero)
+    r = _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "400", "--operation", "drill", "--wob", "1e9",
+             "--out", str(tmp_path / "p.h5"))
+    _one_line_error(r, "compressed past zero length", "weight on bit 1e+09 N")
+    assert not os.listdir(tmp_path)
+
+
+def test_resuming_a_trip_file_is_refused_in_one_line(tmp_path):
+    # seen: exit 2, 'param must be one of phi_L, T, w, EI, GJ, EA, gamma, torque, l0, got 'depth''
+    p = str(tmp_path / "p.h5")
+    assert _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "300", "--operation", "pick-up",
+                "--out", p).returncode == 0
+    before = open(p, "rb").read()
+    _one_line_error(_run("trace", "--resume", p), "is a trip in bit depth", "run the trip again")
+    assert open(p, "rb").read() == before
+
+
+def test_export_refuses_the_well_survey_and_string_files_its_point_was_solved_from(tmp_path):
+    # seen: exit 0, the survey replaced by the export's CSV (the next solve on that well: 'expected MD, ...')
+    import shutil
+    for name in ("well_s3d.toml", "well_s3d.csv", "drill_string.toml"):
+        shutil.copy(os.path.join(EXAMPLES, name), tmp_path)
+    p = str(tmp_path / "p.h5")
+    assert _run("solve", "--conduit", str(tmp_path / "well_s3d.toml"), "--string", str(tmp_path / "drill_string.toml"),
+                "--depth", "300", "--operation", "pick-up", "--out", p).returncode == 0
+    for name in ("well_s3d.toml", "well_s3d.csv", "drill_string.toml"):
+        before = (tmp_path / name).read_bytes()
+        r = _run("export", p, "--point", "0", "--format", "csv", "-o", str(tmp_path / name), "--overwrite")
+        _one_line_error(r, "is the input file")
+        assert (tmp_path / name).read_bytes() == before
+    assert _run("export", p, "--point", "0", "-o", str(tmp_path / "ok.csv")).returncode == 0
+
+
+@pytest.mark.parametrize("option", [["--weight-direction", "1,0,0"], ["--reference", "arc:0.5"], ["--load-step", "7"]])
+def test_rod_options_that_a_drill_string_would_ignore_are_refused(option):
+    # seen: exit 0 and the hook load of the run without them (423714.8939192088 at 300 m pick-up)
+    r = _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "300", "--operation", "pick-up", *option)
+    _one_line_error(r, f"{option[0]} is not an option of a drill string")
+
+
+@pytest.mark.parametrize("which", ["well", "string"])
+def test_an_unknown_table_in_a_well_or_string_file_is_refused(tmp_path, which):
+    # seen: exit 0, a [casing] table in the well file (an [extra] one in the string file) read as nothing
+    import shutil
+    shutil.copy(os.path.join(EXAMPLES, "well_s3d.csv"), tmp_path)
+    well, string = tmp_path / "w.toml", tmp_path / "s.toml"
+    well.write_text(open(WELL).read() + ("\n[casing]\ndepth = 500.0\n" if which == "well" else ""))
+    string.write_text(open(STRING).read() + ("\n[extra]\nx = 1\n" if which == "string" else ""))
+    r = _run("solve", "--conduit", str(well), "--string", str(string), "--depth", "300", "--operation", "pick-up")
+    _one_line_error(r, "unknown table(s) or key(s)", "casing" if which == "well" else "extra")
+
+
+def test_solves_two_outputs_are_published_together(tmp_path, monkeypatch):
+    # seen: Ctrl-C 4.6 s into solve --out a.h5 --joints a.csv left a.csv complete and no a.h5 (exit 130)
+    import numpy as np
+
+    import rodcont.drivers.trip as trip
+    from rodcont.cli.drilling import _write_outputs
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(trip, "write_point", interrupted)
+    table = dict(top=np.array([0.0]), bottom=np.array([9.14]), side_force=np.array([1.0]), max_pressure=np.array([2.0]))
+    with pytest.raises(KeyboardInterrupt):
+        _write_outputs(None, None, None, str(tmp_path / "a.h5"), str(tmp_path / "a.csv"), table, 9.14, False, {},
+                       print)
+    assert not os.listdir(tmp_path)
+    monkeypatch.setattr(trip, "write_point", lambda *a, **k: open(a[3], "w").close())
+    _write_outputs(None, None, None, str(tmp_path / "a.h5"), str(tmp_path / "a.csv"), table, 9.14, False, {}, print)
+    assert sorted(os.listdir(tmp_path)) == ["a.csv", "a.h5"]
+    assert (tmp_path / "a.csv").read_text().splitlines()[1] == "1,0.0,9.14,1.0,2.0"

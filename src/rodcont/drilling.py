@@ -102,6 +102,7 @@ class DrillString:
         """``[string]`` (``mud_density`` kg/m^3 or ``buoyancy_factor``; ``E, G, density`` of the steel) and one
         ``[[section]]`` per section from the bit up; ``mud_density`` given here replaces the file's."""
         doc = _read_toml(path, "string file")
+        _known_tables(doc, ("string", "section"), path)
         head = doc.get("string", {})
         unknown = sorted(set(head) - {"mud_density", "buoyancy_factor", "E", "G", "density"})
         if unknown or not isinstance(doc.get("section"), list):
@@ -157,6 +158,14 @@ def _read_toml(path: str, what: str) -> dict:
         raise DrillingError(f"{path}: not a TOML file ({' '.join(str(exc).split())})") from None
 
 
+def _known_tables(doc: dict, known: tuple, path: str) -> None:
+    """A :class:`DrillingError` for a table or key outside ``known`` (a ``[casing]`` table was read as nothing)."""
+    unknown = sorted(set(doc) - set(known))
+    if unknown:
+        raise DrillingError(f"{path}: unknown table(s) or key(s) {', '.join(unknown)} (known: "
+                            f"{', '.join('[' + k + ']' for k in known)})")
+
+
 def _table(value, what: str, where: str):
     """A number or MD stations ``[[MD, value], ...]`` (piecewise constant from each MD on), as given."""
     from .loads import _stations
@@ -187,6 +196,7 @@ class Well:
         ``eps``."""
         from .curves import MinimumCurvatureWell
         doc = _read_toml(path, "well file")
+        _known_tables(doc, ("well",), path)
         sec = doc.get("well")
         if not isinstance(sec, dict) or "survey" not in sec:
             raise DrillingError(f"{path}: needs a [well] section with survey = FILE.csv")
@@ -519,6 +529,10 @@ def torque_and_drag(well: Well, string: DrillString, depth: float, operation: Op
         if x is None:
             sysm, x = _cold_start(placed, friction, mu, op, T, bit_torque, well.eps, N, k, force_scale, tol)
         sysm, x, err, sf = adapt(sysm, x, max_error, max_side_force_error, N_max, tol)
+    alpha = sysm.model.stretch_factor_min(sysm.disc, x, sysm.base)
+    if not alpha > 0:  # 1 + F.d3/EA <= 0: a pipe shortened past zero length (seen: --wob 1e9, alpha -0.42)
+        raise DrillingError(f"the string is compressed past zero length (stretch 1 + F/EA = {alpha:.3g} <= 0): "
+                            f"an axial load beyond its pipe's EA" + (f" (weight on bit {wob:g} N)" if wob else ""))
     return _result(sysm, x, placed, op, mu, wob, bit_torque, err, well, string)
 
 

@@ -127,6 +127,9 @@ def conduit_survey(path: str) -> str | None:
         return None
     sec = doc.get("conduit")
     spec = sec.get("reference") if isinstance(sec, dict) else None
+    well = doc.get("well")  # a well file (rodcont.drilling.Well): its survey = "FILE"
+    if spec is None and isinstance(well, dict) and isinstance(well.get("survey"), str):
+        spec = "well:" + well["survey"]
     return survey_of(spec, os.path.dirname(os.path.abspath(path)))
 
 
@@ -161,10 +164,14 @@ def command_inputs(*, config: str | None = None, reference: str | None = None, c
         add(p)
     for d in loaded:
         add(getattr(d, "path", None))
-        attrs = getattr(d, "attrs", None) or {}
-        add(survey_of(str(attrs.get("reference", ""))))
-        for b in getattr(d, "branches", ()):
-            add(survey_of(str((getattr(b, "attrs", None) or {}).get("reference", ""))))
+        for attrs in [getattr(d, "attrs", None)] + [getattr(b, "attrs", None) for b in getattr(d, "branches", ())]:
+            attrs = attrs or {}
+            add(survey_of(str(attrs.get("reference", ""))))
+            for key in ("well", "string"):  # a drill string's file records its well and string files (solve --out)
+                if isinstance(attrs.get(key), str) and os.path.isfile(attrs[key]):
+                    add(attrs[key])
+                    if key == "well":
+                        add(conduit_survey(attrs[key]))
     for c in curves:
         for p in curve_files(c):
             add(p)
@@ -286,7 +293,7 @@ class Staged:
     def commit(self) -> None:
         pending, self.pending = self.pending, []
         try:
-            for i, (tmp, path) in enumerate(pending):
+            for i, (tmp, path) in enumerate(pending):  # noqa: B007 - i is read by the except below
                 os.replace(tmp, os.path.realpath(path))
         except OSError as exc:
             for tmp, _ in pending[i:]:

@@ -82,7 +82,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     --string S.toml ...``) and print ``name value`` lines: ``depth``, ``operation``, ``friction``,
     ``hook_load`` (N), ``surface_torque`` (N m), ``side_force`` (N), ``contact_zones``, ``error``, ``N``, the largest
     side force per length and per joint with their MD (``--joint-length``, :func:`rodcont.drilling.joint_side_forces`);
-    ``values["joints"]``: the joints' table as CSV (:func:`write_joints`); ``out``: the equilibrium as a one-point
+    ``values["joints"]``: the joints' table as CSV (:func:`joints_csv`); ``out``: the equilibrium as a one-point
     file in a trip's layout (:func:`rodcont.drivers.trip.write_point`, read by ``rodcont export``). Returns the
     :class:`rodcont.drilling.TorqueDrag`."""
     from ..drilling import DrillingError, torque_and_drag
@@ -90,7 +90,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     from ..loads import motion_name
     if conduit is None:
         raise click.UsageError("--string needs the well: --conduit WELL.toml (a [well] file)")
-    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
+    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), nonnegative=True))
     op = values.get("operation") or motion_name(values.get("trip_speed"), values.get("rpm"),
                                                  bool(values.get("wob") or values.get("bit_torque")))
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
@@ -124,13 +124,28 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     from ..drilling import law_error
     for name, v in law_error(r).items():  # the smoothing's, which the mesh's error does not see (1e-3 rotating)
         echo(f"{name}_law_error {abs(v)!r}")
-    _echo_joints(r, joint_length, values.get("joints"), echo)
-    if out is not None:
-        from ..drivers.trip import write_point
-        write_point(well, string, r, out, overwrite=overwrite, joint_length=joint_length,
-                    meta=dict(well=os.path.abspath(conduit), string=os.path.abspath(values["string"])))
-        click.echo(f"wrote {out}", err=True)
+    table = _echo_joints(r, joint_length, echo)
+    _write_outputs(r, well, string, out, values.get("joints"), table, joint_length, overwrite,
+                   dict(well=os.path.abspath(conduit), string=os.path.abspath(values["string"])), echo)
     return r
+
+
+def _write_outputs(r, well, string, out, joints, table, joint_length, overwrite, meta, echo) -> None:
+    """``--out`` and ``--joints`` published together: the joints' table staged, the point's file written, then the
+    table renamed over its name; a Ctrl-C before that leaves neither (it had left the table alone)."""
+    from ..safeio import Staged
+    with Staged() as stage:
+        if joints is not None:
+            stage.add(joints, joints_csv(table))
+        if out is not None:
+            from ..drivers.trip import write_point
+            write_point(well, string, r, out, overwrite=overwrite, joint_length=joint_length, meta=meta)
+        stage.commit()
+    for path in (out, joints):
+        if path is not None:
+            click.echo(f"wrote {path}", err=True)
+    if joints is not None:
+        echo(f"joints {joints}")
 
 
 def _joint_length(values: dict, depth: float) -> float:
@@ -146,9 +161,9 @@ def _joint_length(values: dict, depth: float) -> float:
     return length
 
 
-def _echo_joints(r, joint_length: float, path: str | None, echo) -> None:
-    """The largest side force per unit length and per joint, with their MD (the joint's top and bottom); the
-    table of every joint to ``path`` (CSV) when given."""
+def _echo_joints(r, joint_length: float, echo) -> dict:
+    """The largest side force per unit length and per joint, with their MD (the joint's top and bottom); returns
+    the table of every joint (:func:`rodcont.drilling.joint_side_forces`)."""
     import numpy as np
 
     from ..drilling import joint_side_forces
@@ -160,30 +175,18 @@ def _echo_joints(r, joint_length: float, path: str | None, echo) -> None:
     echo(f"joint_length {joint_length!r}")
     echo(f"max_joint_side_force {float(j['side_force'][k])!r}")
     echo(f"max_joint_side_force_md {float(j['top'][k])!r} {float(j['bottom'][k])!r}")
-    if path is not None:
-        write_joints(j, path)
-        echo(f"joints {path}")
+    return j
 
 
-def write_joints(j: dict, path: str) -> None:
-    """The joints' table as CSV, from the bit up: ``joint`` (1 at the bit), ``md_top``, ``md_bottom`` (m),
-    ``side_force`` (N), ``max_side_force_per_length`` (N/m); written whole, then renamed over ``path``."""
-    from ..safeio import commit, discard
-    tmp = f"{path}.tmp{os.getpid()}"
+def joints_csv(j: dict) -> str:
+    """The joints' table as CSV text, from the bit up: ``joint`` (1 at the bit), ``md_top``, ``md_bottom`` (m),
+    ``side_force`` (N), ``max_side_force_per_length`` (N/m)."""
     rows = ["joint,md_top,md_bottom,side_force,max_side_force_per_length"]
     n = j["top"].size
     for i in range(n - 1, -1, -1):
         rows.append(",".join([str(n - i)] + [repr(float(j[key][i])) for key in ("top", "bottom", "side_force",
                                                                                   "max_pressure")]))
-    try:
-        with open(tmp, "w") as f:
-            f.write("\n".join(rows) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
-        commit(tmp, path)
-    except BaseException:
-        discard(tmp)
-        raise
+    return "\n".join(rows) + "\n"
 
 
 def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, out: str | None,
@@ -202,7 +205,7 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
         raise click.UsageError("--string needs the well: --conduit WELL.toml (a [well] file)")
     if p_range is None or len(p_range) != 2:
         raise click.UsageError("--param depth needs --range A B (bit depths, m)")
-    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), positive=True))
+    well, string = _load(conduit, values["string"], _check("mud-density", values.get("mud_density"), nonnegative=True))
     a, b = (float(v) for v in p_range)
     if not (0 < a < b) or b > well.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--range A B needs 0 < A < B <= {well.total_depth:g} (the survey), got {a:g} {b:g}")
@@ -260,10 +263,15 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     from ..drivers.broomstick import broomstick
     # click's options take one value each: the further numbers of --friction 0.15 0.25 0.35 arrive as arguments
     friction = [_check("friction", f, nonnegative=True) for f in tuple(friction) + tuple(more_friction)]
+    if jobs is not None and jobs < 0:
+        raise click.UsageError(f"--jobs must be 0 (the cores) or more, got {jobs}")
+    if len(set(friction)) < len(friction):
+        raise click.UsageError(f"--friction {next(f for f in friction if friction.count(f) > 1):g} is given twice: "
+                               f"give each factor once")
     a, b = depth
     if not (a > 0 and b > a) or points < 2:
         raise click.UsageError(f"--depth A B needs 0 < A < B and --points at least 2, got {a:g} {b:g}, {points}")
-    w, s = _load(well, string, _check("mud-density", mud_density, positive=True))
+    w, s = _load(well, string, _check("mud-density", mud_density, nonnegative=True))
     _check_broom_outputs(png, h5, _inputs(well, string, w), overwrite)
     if b > w.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")

@@ -72,10 +72,11 @@ def _solve_string(a) -> None:
                             f"weight, the operation, --wob and --bit-torque; drop --{name}")
     if click.get_current_context().meta.get("rodcont.T") is not None:
         raise UserError("--T is not an option of a drill string (--string): drop it")
-    said = explicit("w", "EI", "GJ", "EA", "L", "uniform")
+    said = explicit("w", "EI", "GJ", "EA", "L", "uniform", "weight_direction", "reference", "load_step")
     if said:  # the string file and the survey give them (test_drilling_cli: they were ignored)
-        raise UserError(f"--{said[0]} is not an option of a drill string (--string): its sections give w, EI, GJ "
-                        f"and EA, --depth its length; drop --{said[0]} (cap the mesh with --N-max)")
+        raise UserError(f"--{said[0].replace('_', '-')} is not an option of a drill string (--string): its sections "
+                        f"give w, EI, GJ and EA, the well file its path, --depth its length, gravity is down the "
+                        f"true vertical depth; drop --{said[0].replace('_', '-')} (cap the mesh with --N-max)")
     values = {key: getattr(a, key) for key in DRILLING_KEYS}
     values.update(max_error=a.max_error, N_max=a.N_max, N=a.N if explicit("N") else None, k=a.k)
     run_drilling_solve(a.conduit, values, overwrite=a.overwrite, out=a.out)

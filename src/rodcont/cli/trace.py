@@ -229,6 +229,9 @@ def _resume_trace(path, extend, out, start, from_straight, switch, param, prange
     if kind != "branch":
         raise UserError(f"{path} is a {str(kind).replace('_', ' ')} file, not a trace: it cannot be resumed")
     data = d.branches[0]
+    if data.param == "depth":  # its rod is a placed string, which rodcont.restart does not rebuild
+        raise UserError(f"{path} is a trip in bit depth: --resume does not continue trips; run the trip again "
+                        f"(its command with --overwrite)")
     if explicit("param") and param != data.param:
         raise UserError(f"--resume goes on in the file's parameter ({data.param}): drop --param {param}")
     if kw["direction"] != 1:

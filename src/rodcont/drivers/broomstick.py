@@ -73,7 +73,14 @@ def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Ex
     and each operation; ``options`` go to :func:`rodcont.drilling.torque_and_drag` (``N_max``, ``max_error``)."""
     from .sweep import _worker_init
     depths = np.asarray(depths, float)
-    cases = [(op, float(mu)) for op in operations for mu in mus]
+    mus = [float(mu) for mu in mus]
+    for what, values in (("friction factor", mus), ("operation", list(operations))):
+        twice = [v for v in values if values.count(v) > 1]
+        if twice:  # one curve each: a second copy's cells were never filled (uninitialised numbers printed)
+            raise ValueError(f"the {what} {twice[0]} is given twice: give each once")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 0):
+        raise ValueError(f"jobs must be a non-negative integer (0: the cores), got {jobs!r}")
+    cases = [(op, mu) for op in operations for mu in mus]
     tasks = broom_tasks(depths, cases)
     own = executor is None
     if own:
