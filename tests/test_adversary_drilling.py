@@ -239,3 +239,18 @@ def test_solves_two_outputs_are_published_together(tmp_path, monkeypatch):
     _write_outputs(None, None, None, str(tmp_path / "a.h5"), str(tmp_path / "a.csv"), table, 9.14, False, {}, print)
     assert sorted(os.listdir(tmp_path)) == ["a.csv", "a.h5"]
     assert (tmp_path / "a.csv").read_text().splitlines()[1] == "1,0.0,9.14,1.0,2.0"
+
+
+def test_a_workers_sigterm_is_silent():
+    # seen: SIGTERM to a broomstick's process group printed 'rodcont: interrupted' three times (the command and
+    # its 2 workers, which inherit the command line's handler); a worker now stops without a word
+    code = ("import os, signal, sys, time\n"
+            "from rodcont import _interrupted\n"
+            "signal.signal(signal.SIGTERM, _interrupted)\n"   # the command line's handler, as a worker inherits it
+            "from rodcont.drivers.sweep import _worker_init\n"
+            "_worker_init()\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\n"
+            "time.sleep(30)\n")
+    env = dict(os.environ, PYTHONPATH=os.path.join(HERE, "..", "src"))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 143 and r.stderr == "", (r.returncode, r.stderr)

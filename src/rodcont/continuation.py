@@ -825,10 +825,20 @@ class Tracker:
             return StopReason(Status.BOUND, f"parameter bound {'p_max' if pt.tp > 0 else 'p_min'} = "
                                           f"{s.p_max if pt.tp > 0 else s.p_min:g} reached at the start")
         for ev in self.events:
-            if ev.action in (Action.STOP, Action.SEGMENT) and ev.function(pt) < 0 and not self._enters(ev, pt):
+            if ev.action not in (Action.STOP, Action.SEGMENT):
+                continue
+            g = ev.function(pt)
+            if (g < 0 and not self._enters(ev, pt)) or (g >= 0 and self._leaves(ev, pt)):
                 return StopReason(Status.AT_START if ev.action == Action.STOP else Status.SEGMENT,
                                   f"{ev.name} (already at the start)", ev.label)
         return None
+
+    def _leaves(self, ev: Event, pt: Point) -> bool:
+        """Is ``pt`` on the event, heading out: outside (``g < 0``) one smallest step along its tangent? (A guard's
+        located point read a hair inside on one machine and a hair outside on another: the restart on past it was
+        refused on one only, test_the_last_point_of_a_finished_branch_restarts_back_along_it.)"""
+        q, _ = self._correct(pt, self.settings.ds_min)
+        return q is not None and ev.function(q) < 0
 
     def _enters(self, ev: Event, pt: Point) -> bool:
         """Is ``pt`` on the event, heading in: inside (``g > 0``) one smallest step along its tangent? (The

@@ -69,9 +69,17 @@ def trace_to_file(gamma: float, path: str, rod: dict, queue=None, diagram: bool 
 
 
 def _worker_init() -> None:
-    """Worker processes: one BLAS thread each (the pool itself is the parallelism)."""
+    """Worker processes: one BLAS thread each (the pool itself is the parallelism), and a SIGTERM that stops the
+    worker without a word: the command line's handler, inherited, had each worker print 'rodcont: interrupted' as
+    well (three lines for a broomstick on 2 workers; test_a_workers_sigterm_is_silent)."""
+    import signal
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    signal.signal(signal.SIGTERM, _silent_stop)
+
+
+def _silent_stop(signum, frame):
+    raise SystemExit(143)  # unwinds the job's own cleanup (a sweep's worker writes its branch file)
 
 
 def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k: int = 5, jobs: int | None = None,
