@@ -1088,7 +1088,11 @@ def test_a_bracketed_fold_and_one_above_fold_error_are_said_in_the_summary(tmp_p
     assert code == 0, err
     warned = [ln for ln in out.splitlines() if ln.startswith("warning")]
     assert any("is bracketed, not located" in ln and "25.953" in ln for ln in warned), out
-    assert any("above --fold-error" in ln for ln in warned), out
+    # whether the bracketed fold's estimate passes --fold-error (1e-9) is the machine's rounding (above it on the
+    # CPU this was written on, below on another): the summary says it exactly when the file's fold holds it
+    b = rodcont.load_branch(str(tmp_path / "t.h5"))
+    error = float(b.table["error"][b.folds[0]["index"]])   # 8.4e-10 on one machine
+    assert any("above --fold-error" in ln for ln in warned) == (error > 1e-9), (error, out)
 
 
 @pytest.mark.slow

@@ -128,8 +128,9 @@ def test_the_readme_prints_what_the_controls_give(torque_branch):
     row = re.search(r"^F1\s+(\d+)\s+([-0-9.e]+)\s+([-0-9.e]+)", SECTION, re.MULTILINE)
     assert int(row.group(1)) == f["index"]
     assert float(row.group(2)) == pytest.approx(f["torque"], abs=1e-11)
-    assert float(row.group(3)) == pytest.approx(f["phi_L"], abs=1e-12)
-    assert _readme_number(r"torque maximum, Φ =") == pytest.approx(f["phi_L"], abs=1e-12)
+    # the fold located to its guard (1e-9): its last printed digits are the machine's (1.1e-12 apart on two CPUs)
+    assert float(row.group(3)) == pytest.approx(f["phi_L"], abs=1e-10)
+    assert _readme_number(r"torque maximum, Φ =") == pytest.approx(f["phi_L"], abs=1e-10)
     br = rodcont.trace(None, rod=WEIGHTLESS, l0=0.97, from_critical=1, phi_max=14.0)
     assert _readme_number(r"l0 = 0.97`: Φ =") == pytest.approx(br.table["phi_L"][0], abs=1e-12)
     assert _readme_number(r"closed form") == pytest.approx(tw.critical_twist_length_control(0.97), abs=1e-12)

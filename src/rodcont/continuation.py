@@ -828,17 +828,21 @@ class Tracker:
             if ev.action not in (Action.STOP, Action.SEGMENT):
                 continue
             g = ev.function(pt)
-            if (g < 0 and not self._enters(ev, pt)) or (g >= 0 and self._leaves(ev, pt)):
+            if (g < 0 and not self._enters(ev, pt)) or (g >= 0 and self._leaves(ev, pt, g)):
                 return StopReason(Status.AT_START if ev.action == Action.STOP else Status.SEGMENT,
                                   f"{ev.name} (already at the start)", ev.label)
         return None
 
-    def _leaves(self, ev: Event, pt: Point) -> bool:
-        """Is ``pt`` on the event, heading out: outside (``g < 0``) one smallest step along its tangent? (A guard's
-        located point read a hair inside on one machine and a hair outside on another: the restart on past it was
-        refused on one only, test_the_last_point_of_a_finished_branch_restarts_back_along_it.)"""
+    def _leaves(self, ev: Event, pt: Point, g0: float) -> bool:
+        """Is ``pt`` on the event, heading out: ``g`` crosses zero within a thousandth of one smallest step along its
+        tangent? (A guard's located point read a hair inside on one machine and a hair outside on another: the
+        restart on past it was refused on one only, test_the_last_point_of_a_finished_branch_restarts_back_along_it;
+        an event a hundredth of that step ahead is located, test_an_event_just_ahead_of_the_start_is_located_...)"""
         q, _ = self._correct(pt, self.settings.ds_min)
-        return q is not None and ev.function(q) < 0
+        if q is None:
+            return False
+        g1 = ev.function(q)
+        return g1 < 0 <= g0 <= 1e-3 * (g0 - g1)
 
     def _enters(self, ev: Event, pt: Point) -> bool:
         """Is ``pt`` on the event, heading in: inside (``g > 0``) one smallest step along its tangent? (The
