@@ -49,14 +49,16 @@ def trip_depths(depth_range, operation: str, points: int) -> np.ndarray:
 
 def trip_row(r, origin: float, joint_length: float = 9.14) -> dict:
     """The branch row of the equilibrium ``r`` (a :class:`rodcont.drilling.TorqueDrag`); ``max_joint_side_force``
-    the largest wall force on one joint of ``joint_length`` (:func:`rodcont.drilling.joint_side_forces`)."""
-    from ..drilling import _join_unknowns, buckling_ratio, joint_side_forces
+    the largest wall force on one joint of ``joint_length`` (:func:`rodcont.drilling.joint_side_forces`' ``side_force``,
+    without its located maxima of the force per length, which the row does not keep)."""
+    from ..drilling import _join_unknowns, buckling_ratio, collocated_integral, joint_edges
     sysm = r.system
     out = sysm.outputs(r.x, sysm.value())
     out.update(depth=r.depth, T=float(sysm.value()), error=r.error, unstable_modes=-1, arclength=abs(r.depth - origin),
                dphi_ds=0.0, join_unknowns=_join_unknowns(sysm), buckling_ratio=float(np.max(buckling_ratio(r))),
                kind="regular", located=True,
-               max_joint_side_force=float(np.max(joint_side_forces(r, joint_length)["side_force"])),
+               max_joint_side_force=float(np.max(collocated_integral(sysm, r.x, r.params,
+                                                                     joint_edges(r.depth, joint_length)))),
                force_scale=float(sysm.model.contact_scale))
     return out
 
