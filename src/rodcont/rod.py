@@ -1234,6 +1234,13 @@ class EulerianRod:
             self._last_contact = (key, out)
         return out
 
+    def pressure_at(self, disc: Collocation, x: np.ndarray, S) -> np.ndarray:
+        """The wall's force per length at points ``S`` on the solution's spline (:meth:`contact`'s ``pressure``,
+        without the rest of its grid quantities)."""
+        S = np.asarray(S, float)
+        z = (disc.jet_matrix(S) @ x).reshape(self.problem.jet_size, S.size)
+        return self.wall.pressure(z[Jet.D1[0]], z[Jet.D2[0]], self.contact_scale, S)
+
     def pressure_at_points(self, disc: Collocation, x: np.ndarray) -> np.ndarray:
         """The wall's force per length at the collocation points, where alone the equations load the rod (a point
         contact narrower than an interval is misread by a sampling; test_the_total_side_force_...); its Gauss
