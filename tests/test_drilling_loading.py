@@ -19,14 +19,17 @@ def test_the_softer_laws_loading_reaches_the_wall_laws_equilibrium(monkeypatch):
     well = drilling.Well.from_toml(os.path.join(EXAMPLES, "well_s3d.toml"))
     string = drilling.DrillString.from_toml(os.path.join(EXAMPLES, "drill_string.toml"))
     placed = drilling.place_string(well, string, 2875.0)
+    from rodcont.loads import Friction
     P = drilling.build_system(placed, None, 0.0, 0.0, well.eps, 300, 5).model.contact_scale
     solved, raised, raise_load = {}, [], drilling._raise_load
-    monkeypatch.setattr(drilling, "_raise_load", lambda *a: raised.append(a[5]) or raise_load(*a))
+    monkeypatch.setattr(drilling, "_raise_load", lambda *a: raised.append(a[2]) or raise_load(*a))
     for ramp in (drilling.RAMP_EPS, well.eps):
         monkeypatch.setattr(drilling, "RAMP_EPS", ramp)
-        s, x = drilling._loaded_gradually(placed, 0.25, Operation.named("slack-off"), 0.0, 0.0, well.eps, 300, 5, P,
-                                          1e-10)
-        assert s.model.wall.eps == well.eps
+        friction = Friction(0.25, placed.radius, Operation.named("slack-off"))
+        sysm = drilling.build_system(placed, friction, 0.0, 0.0, well.eps, 300, 5, force_scale=P)
+        s, x = drilling._loaded_gradually(sysm, friction, 1e-10)
+        # the ramp scaled the one system in place: its law, friction factor and bit loads are its own again
+        assert s is sysm and s.model.wall.eps == well.eps and friction.mu(1000.0) == 0.25
         solved[ramp] = (hook_load(s.model, s.disc, x, s.base), x)
     assert raised == [1e-3, well.eps]   # each path its own law, no fallback from the softer one
     (soft, xs), (own, xo) = solved.values()
@@ -56,7 +59,7 @@ def test_a_cold_start_whose_softest_law_fails_on_the_coarse_mesh_raises_the_load
     friction = Friction(0.25, placed.radius, op)
     calls = _recorded_homotopies(monkeypatch)
     with np.errstate(all="ignore"):
-        s, x = drilling._cold_start(placed, friction, 0.25, op, 0.0, 0.0, eps, 300, 5, None, 1e-10)
+        s, x = drilling._cold_start(placed, friction, 0.0, 0.0, eps, 300, 5, None, 1e-10)
         assert calls[0] == (159, 0.1) and (300, 0.1) not in calls   # the coarse mesh's softest stage failed
         assert s.model.wall.eps == eps and np.max(np.abs(s.disc.residual(x, s.base))) < 1e-6
         # what the skip spares: the same soft law from the same guess on the mesh itself fails as well
@@ -75,5 +78,25 @@ def test_where_the_load_cannot_be_raised_the_cold_start_runs_the_homotopy_it_ski
     monkeypatch.setattr(drilling, "_loaded_gradually", fails)
     calls = _recorded_homotopies(monkeypatch)
     with np.errstate(all="ignore"), pytest.raises(ConvergenceError, match="eps = 0.1"):
-        drilling._cold_start(placed, Friction(0.25, placed.radius, op), 0.25, op, 0.0, 0.0, eps, 300, 5, None, 1e-10)
+        drilling._cold_start(placed, Friction(0.25, placed.radius, op), 0.0, 0.0, eps, 300, 5, None, 1e-10)
     assert calls == [(159, 0.1), (300, 0.1)]
+
+
+def test_a_load_ramp_that_fails_leaves_its_system_as_it_was(monkeypatch):
+    # the ramp scales the friction factor, the bit's loads and the law of the one system in place: a failed step
+    # must not leave a fraction of them behind for the fallback that follows (_cold_start's homotopy on the mesh)
+    from rodcont.collocation import Collocation
+    from rodcont.drivers.solve import ConvergenceError
+    from rodcont.linalg import NewtonResult
+    from rodcont.loads import Friction
+    placed, op, eps = _slack_2875()
+    friction = Friction(0.25, placed.radius, op)
+    sysm = drilling.build_system(placed, friction, -2.0e4, 500.0, eps, 300, 5)
+    before = (sysm.base.copy(), friction.mu_table, sysm.model.wall)
+    monkeypatch.setattr(drilling, "settle", lambda s, x, tol, **kw: x)  # at no load: the guess, as it is
+    monkeypatch.setattr(Collocation, "newton", lambda self, x, p, **kw: NewtonResult(x, False, 1, 1.0, 1.0, "refused"))
+    with np.errstate(all="ignore"), pytest.raises(ConvergenceError, match="raised from 0 past 0 of theirs"):
+        drilling._raise_load(sysm, friction, 1e-3, 1e-10, 0.25)
+    assert np.array_equal(sysm.base, before[0]) and friction.mu_table is before[1] and sysm.model.wall is before[2]
+    names = sysm.model.param_names
+    assert sysm.base[names.index("T")] == -2.0e4 and sysm.base[names.index("torque")] == -500.0

@@ -163,16 +163,16 @@ def climb(rungs: list, x: np.ndarray, source: RodSystem, p: np.ndarray, tol: flo
     return x
 
 
-def _ladder(sysm: RodSystem, coarsen: int | None, stages: list) -> list:
+def _ladder(sysm: RodSystem, coarsen: int | None, stages: list, coarsest: RodSystem | None = None) -> list:
     """``[(system, stages)]`` from the coarsest mesh to ``sysm``'s own: the stages but the last on every c-th
     breakpoint, the last two on every second (where c > 2), the last on ``sysm``. A coarse solution of the stiff
     law misplaces the contacts the mesh itself resolves: carried straight to the mesh of examples/well_s3d.toml's
     3250 m pick-up its last stage failed and the solve took 161 LUs in all, 49 with the middle rung, 4 of them on
-    the mesh itself (test_homotopy.py)."""
+    the mesh itself (test_homotopy.py). ``coarsest``: ``_coarse_system(sysm, coarsen)`` where the caller has it."""
     c = _coarsening(sysm.disc.N, coarsen)
     if c < 2 or len(stages) < 2:
         return [(sysm, stages)]
-    rungs = [(_coarse_system(sysm, c), stages[:-1])]
+    rungs = [(_coarse_system(sysm, c) if coarsest is None else coarsest, stages[:-1])]
     if c > 2:
         rungs.append((_coarse_system(sysm, 2), stages[-2:]))
     return rungs + [(sysm, stages[-1:] if c > 2 else stages[-2:])]
