@@ -20,6 +20,8 @@ Sections:
            (examples/conduit_well.toml, target 4 s CPU), its peak memory
   fill     fill of every factorisation at the Gamma = 1 fold (steps, error estimate, stability count): nonzeros
            of L + U over the matrix's own (target 5)
+  broomstick  `rodcont broomstick` of the benchmark well, 3 operations x 100 depths (--quick: 10, extrapolated;
+           target 3 minutes wall)
   breakdown  the first Gamma = 1 trace's CPU by kind of work (instrumented): what compiled pointwise kernels, and
            a free linear algebra, would leave at most (issue 24: measured, not added)
 """
@@ -239,6 +241,26 @@ def section_drilling(a, old):
     print(f"the soft string on the same well: {1e3 * r['soft']:.0f} ms, hook load {r['soft_hook'] / 1e3:.1f} kN")
 
 
+def section_broomstick(a, old):
+    """Issue 23's broomstick figure: `rodcont broomstick` on the benchmark well with the 3-section string, mu 0.25,
+    3 operations, whole process on the usable cores (target 3 minutes for 100 depths from 1000 to 3500 m). With
+    --quick 10 depths over the same range, the 100 depths' time extrapolated from them (each depth a cold
+    start: the time is the sum over depths, sampled evenly)."""
+    points = 10 if a.quick else 100
+    print(f"\n## torque and drag: a broomstick, 3 operations x {points} depths (wall, whole process)   {load()}")
+    ex = os.path.join(ROOT, "examples")
+    cmd = [sys.executable, "-c", "from rodcont._entry import main; main()", "broomstick",
+           os.path.join(ex, "well_s3d.toml"), "--string", os.path.join(ex, "drill_string.toml"), "--friction",
+           "0.25", "--depth", "1000", "3500", "--points", str(points), "-o", os.path.join(TMP, "broom.png"),
+           "--overwrite"]
+    cpu, wall, _ = child(cmd, env_for(SRC, "new"))
+    full = wall * 100 / points
+    how = "" if points == 100 else f", extrapolated to 100 depths: {full:.0f} s"
+    print(f"broomstick of {3 * points} equilibria on {os.cpu_count()} cores: wall {wall:.1f} s (CPU {cpu:.1f} s, "
+          f"{cpu / (3 * points):.2f} s an equilibrium){how}  target 180 s  {verdict(full <= 180.0)}"
+          f"{'' if full <= 180 else f' ({full / 180:.1f}x over)'}")
+
+
 FILL = """
 import collections, json, sys
 import scipy.sparse.linalg as spla
@@ -343,7 +365,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--reps", type=int, default=None, help="repetitions (best of; default 5, --quick 3)")
     ap.add_argument("--old", default="/work/old", help="a checkout of 0ee0293 (else git archive of it)")
-    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill breakdown drilling")
+    ap.add_argument("--only", nargs="*", help="sections: trace floor diagram long fill breakdown drilling broomstick")
     a = ap.parse_args()
     a.reps = a.reps or (3 if a.quick else 5)
     import numpy as np
@@ -351,7 +373,8 @@ def main():
           f"{os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}, {load()}")
     old = old_source(a.old)
     sections = dict(trace=section_trace, floor=section_floor, diagram=section_diagram, long=section_long,
-                    fill=section_fill, breakdown=section_breakdown, drilling=section_drilling)
+                    fill=section_fill, breakdown=section_breakdown, drilling=section_drilling,
+                    broomstick=section_broomstick)
     for name, fn in sections.items():
         if not a.only or name in a.only:
             fn(a, old)
