@@ -254,3 +254,35 @@ def test_a_workers_sigterm_is_silent():
     env = dict(os.environ, PYTHONPATH=os.path.join(HERE, "..", "src"))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
     assert r.returncode == 143 and r.stderr == "", (r.returncode, r.stderr)
+
+
+@pytest.mark.parametrize("depth", ["1e-300", "0.01", "0.2159"])
+def test_a_bit_depth_within_the_holes_diameter_is_refused(tmp_path, depth):
+    # seen: --depth 1e-300 'a well needs at least two survey stations', 0.01 'no equilibrium found inside the
+    # conduit (contact smoothing eps = 0.0001): singular Jacobian', each after the solve had started
+    r = _run("solve", "--conduit", WELL, "--string", STRING, "--depth", depth, "--operation", "pick-up")
+    assert r.returncode == 2 and "within the hole's diameter (0.2159 m)" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "hook_load" not in r.stdout
+    r = _run("trace", "--param", "depth", "--range", depth, "100", "--conduit", WELL, "--string", STRING,
+             "--out", str(tmp_path / "t.h5"))
+    assert r.returncode == 2 and "within the hole's diameter" in r.stderr, r.stderr
+    r = _run("broomstick", WELL, "--string", STRING, "--friction", "0.25", "--depth", depth, "100",
+             "-o", str(tmp_path / "b.png"))
+    assert r.returncode == 2 and "within the hole's diameter" in r.stderr, r.stderr
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_bit_just_deeper_than_the_hole_is_wide_is_solved():
+    # the floor is the hole's diameter, not some length above it: 0.22 m of collars hangs in its hole
+    from rodcont import drilling
+    from rodcont.drivers.broomstick import broomstick
+    well, string = drilling.Well.from_toml(WELL), drilling.DrillString.from_toml(STRING)
+    with pytest.raises(drilling.DrillingError, match="within the hole's diameter"):
+        drilling.torque_and_drag(well, string, 0.2159, "static")
+    with pytest.raises(drilling.DrillingError, match="within the hole's diameter"):
+        broomstick(well, string, [0.1, 100.0], [0.25], jobs=1)
+    r = drilling.torque_and_drag(well, string, 0.22, "static")
+    # the top of a vertical hole without friction: the hook load is the buoyed weight of the collars' unstressed
+    # length, 0.22 m of hole less their stretch under their own weight (dF/dS = w / (1 + F/EA), F(L) = 0)
+    w, EA = 2189.0 * (1 - 1200.0 / 7850.0), 5.88e9
+    assert r.hook_load == pytest.approx(w * 0.22 * (1 - w * 0.22 / (2 * EA)), rel=1e-11)

@@ -222,13 +222,24 @@ class Well:
     def total_depth(self) -> float:
         return float(self.stations[-1, 0] - self.stations[0, 0])
 
+    def check_depth(self, depth: float) -> float:
+        """``depth`` (m, bit MD from the rig), checked: inside the survey and deeper than the hole is wide at the
+        rig. A shorter string is no rod in its hole: at 1e-300 m the survey cut to it had one station, at 1 cm
+        the homotopy met an exactly singular Jacobian (test_a_bit_depth_within_the_holes_diameter_is_refused)."""
+        depth = float(depth)
+        if not 0 < depth <= self.total_depth * (1 + 1e-12):
+            raise DrillingError(f"the bit depth {depth:g} m lies outside the survey (0 .. {self.total_depth:g} m)")
+        hole = float(_value_at(self.hole_diameter, np.asarray(0.0)))
+        if depth <= hole:
+            raise DrillingError(f"the bit depth {depth:g} m is within the hole's diameter ({hole:g} m) of the rig: "
+                                f"a string that short is no rod in its hole; give a depth above {hole:g} m")
+        return depth
+
     def curve(self, depth: float):
         """The well path from the rig to the bit at MD ``depth`` (the survey cut there on its arc)."""
         from .curves import MinimumCurvatureWell
         st = self.stations
-        md = st[0, 0] + float(depth)
-        if not 0 < depth <= self.total_depth * (1 + 1e-12):
-            raise DrillingError(f"the bit depth {depth:g} m lies outside the survey (0 .. {self.total_depth:g} m)")
+        md = st[0, 0] + self.check_depth(depth)
         keep = st[st[:, 0] < md - 1e-9 * max(1.0, md)]
         if keep.shape[0] == 0 or abs(st[keep.shape[0], 0] - md) <= 1e-9 * max(1.0, md):
             return MinimumCurvatureWell(np.vstack([keep, st[keep.shape[0]]]))

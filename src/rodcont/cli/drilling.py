@@ -66,6 +66,17 @@ def _inputs(well_path: str, string_path: str, well) -> tuple:
     return tuple(p for p in (well_path, well.survey, string_path) if p)
 
 
+def _check_depths(well, *depths) -> None:
+    """Each bit depth inside the survey and deeper than the hole is wide (:meth:`rodcont.drilling.Well.check_depth`),
+    or the usage error before any output is touched."""
+    from ..drilling import DrillingError
+    for depth in depths:
+        try:
+            well.check_depth(depth)
+        except DrillingError as exc:
+            raise click.UsageError(str(exc)) from None
+
+
 def _check(name: str, v, positive=False, nonnegative=False):
     import math
     if v is None:
@@ -94,6 +105,7 @@ def run_drilling_solve(conduit: str | None, values: dict, echo=click.echo, overw
     op = values.get("operation") or motion_name(values.get("trip_speed"), values.get("rpm"),
                                                  bool(values.get("wob") or values.get("bit_torque")))
     depth = _check("depth", values.get("depth"), positive=True) or well.total_depth
+    _check_depths(well, depth)
     joint_length = _joint_length(values, depth)
     from ..branchfile import BranchFileError, check_output
     for path, what in ((values.get("joints"), "--joints"), (out, "--out")):
@@ -209,6 +221,7 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     a, b = (float(v) for v in p_range)
     if not (0 < a < b) or b > well.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--range A B needs 0 < A < B <= {well.total_depth:g} (the survey), got {a:g} {b:g}")
+    _check_depths(well, a)
     if out is not None:
         from ..branchfile import BranchFileError, check_output
         try:
@@ -272,9 +285,10 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     if not (a > 0 and b > a) or points < 2:
         raise click.UsageError(f"--depth A B needs 0 < A < B and --points at least 2, got {a:g} {b:g}, {points}")
     w, s = _load(well, string, _check("mud-density", mud_density, nonnegative=True))
-    _check_broom_outputs(png, h5, _inputs(well, string, w), overwrite)
     if b > w.total_depth * (1 + 1e-12):
         raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")
+    _check_depths(w, a)
+    _check_broom_outputs(png, h5, _inputs(well, string, w), overwrite)
     br = broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs)
     for op, mu, d, why in br.failures:
         click.echo(f"rodcont: warning: {op}, mu {mu:g}, depth {d:g}: {why}", err=True)

@@ -80,6 +80,8 @@ def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Ex
             raise ValueError(f"the {what} {twice[0]} is given twice: give each once")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 0):
         raise ValueError(f"jobs must be a non-negative integer (0: the cores), got {jobs!r}")
+    for d in depths:  # refused here in one line, not as a failure of every job at that depth
+        well.check_depth(d)
     cases = [(op, mu) for op in operations for mu in mus]
     tasks = broom_tasks(depths, cases)
     own = executor is None
