@@ -286,3 +286,19 @@ def test_a_bit_just_deeper_than_the_hole_is_wide_is_solved():
     # length, 0.22 m of hole less their stretch under their own weight (dF/dS = w / (1 + F/EA), F(L) = 0)
     w, EA = 2189.0 * (1 - 1200.0 / 7850.0), 5.88e9
     assert r.hook_load == pytest.approx(w * 0.22 * (1 - w * 0.22 / (2 * EA)), rel=1e-11)
+
+
+def test_a_solid_section_may_say_id_0_as_it_may_leave_it_out(tmp_path):
+    # seen: 'section 1: id must be a positive number, got 0' for a solid bar, whose id left out was read as 0
+    from rodcont import drilling
+    head = "[string]\nmud_density = 1200.0\nE = 207e9\nG = 80e9\ndensity = 7850.0\n\n[[section]]\nod = 0.1\n"
+    strings = []
+    for extra in ("id = 0\n", "id = 0.0\n", ""):
+        (tmp_path / "s.toml").write_text(head + extra)
+        strings.append(drilling.DrillString.from_toml(str(tmp_path / "s.toml")).sections[0])
+    assert strings[0] == strings[1] == strings[2]
+    # a solid steel rod of 0.1 m: EA = E pi d^2 / 4
+    assert strings[0].EA == pytest.approx(207e9 * 3.141592653589793 * 0.01 / 4, rel=1e-14)
+    (tmp_path / "s.toml").write_text(head + "id = -0.01\n")
+    with pytest.raises(drilling.DrillingError, match="id must be a non-negative number"):
+        drilling.DrillString.from_toml(str(tmp_path / "s.toml"))

@@ -60,10 +60,11 @@ def _section(row: dict, steel: dict, where: str) -> Section:
     unknown = sorted(set(row) - known)
     if unknown:
         raise DrillingError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-    for key, v in row.items():
+    for key, v in row.items():  # id = 0: a solid bar (the default), not a bore of no size refused
         if key != "name" and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                              or not v > 0):
-            raise DrillingError(f"{where}: {key} must be a positive number, got {v!r}")
+                              or not (v >= 0 if key == "id" else v > 0)):
+            what = "non-negative" if key == "id" else "positive"
+            raise DrillingError(f"{where}: {key} must be a {what} number, got {v!r}")
     od, idia = row.get("od"), row.get("id", 0.0)
     if od is not None and not idia < od:
         raise DrillingError(f"{where}: id {idia!r} must be smaller than od {od!r}")
