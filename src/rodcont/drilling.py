@@ -972,17 +972,33 @@ def drilling_record(well: Well, string: DrillString, td: TorqueDrag) -> str:
     stations, hole diameter, friction, ``eps``), the string (sections, buoyancy factor), the operation, the
     friction factor used, WOB, bit torque and ``k``. With a point's depth, mesh, coefficients and contact law's
     force scale it rebuilds that point's system (:func:`rebuild`)."""
-    import dataclasses
     import json
     op = td.operation
     return json.dumps(dict(
-        version=RECORD_VERSION,
+        version=RECORD_VERSION, **well_and_string_record(well, string),
+        operation=dict(name=op.name, trip_speed=float(op.trip_speed), rpm=float(op.rpm)),
+        mu=_plain_table(td.mu), wob=float(td.wob), bit_torque=float(td.bit_torque), k=int(td.system.disc.k)))
+
+
+def well_and_string_record(well: Well, string: DrillString) -> dict:
+    """``{"well": ..., "string": ...}`` as plain JSON values: the well's survey stations, hole diameter, friction
+    and ``eps`` (and the survey's path, for the record), the string's sections and buoyancy factor; read back by
+    :func:`well_and_string_back`."""
+    import dataclasses
+    return dict(
         well=dict(stations=np.asarray(well.stations, float).tolist(), hole_diameter=_plain_table(well.hole_diameter),
                   friction=_plain_table(well.friction), eps=float(well.eps), survey=well.survey),
         string=dict(buoyancy_factor=float(string.buoyancy_factor),
-                    sections=[dataclasses.asdict(s) for s in string.sections]),
-        operation=dict(name=op.name, trip_speed=float(op.trip_speed), rpm=float(op.rpm)),
-        mu=_plain_table(td.mu), wob=float(td.wob), bit_torque=float(td.bit_torque), k=int(td.system.disc.k)))
+                    sections=[dataclasses.asdict(s) for s in string.sections]))
+
+
+def well_and_string_back(d: dict) -> tuple:
+    """``(Well, DrillString)`` of :func:`well_and_string_record`'s ``d`` (KeyError, ValueError, TypeError where
+    it is damaged)."""
+    w, s = d["well"], d["string"]
+    well = Well(np.asarray(w["stations"], float), _table_back(w["hole_diameter"]), _table_back(w["friction"]),
+                float(w["eps"]), w.get("survey"))
+    return well, DrillString(tuple(Section(**row) for row in s["sections"]), float(s["buoyancy_factor"]))
 
 
 def read_record(text: str) -> dict:
@@ -994,10 +1010,7 @@ def read_record(text: str) -> dict:
         if int(d.get("version", 0)) > RECORD_VERSION:
             raise DrillingError(f"its drilling record is version {d['version']}, newer than this rodcont's "
                                 f"({RECORD_VERSION}): update rodcont")
-        w, s = d["well"], d["string"]
-        well = Well(np.asarray(w["stations"], float), _table_back(w["hole_diameter"]), _table_back(w["friction"]),
-                    float(w["eps"]), w.get("survey"))
-        string = DrillString(tuple(Section(**row) for row in s["sections"]), float(s["buoyancy_factor"]))
+        well, string = well_and_string_back(d)
         op = Operation(str(d["operation"]["name"]), float(d["operation"]["trip_speed"]),
                        float(d["operation"]["rpm"]))
         return dict(well=well, string=string, operation=op, mu=_table_back(d["mu"]), wob=float(d["wob"]),

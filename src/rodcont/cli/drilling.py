@@ -18,6 +18,7 @@ User errors are ``click.UsageError`` (the CLI's ``main`` prints one line ``rodco
 from __future__ import annotations
 
 import os
+import sys
 
 import click
 
@@ -256,28 +257,61 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
 
 
 @click.command("broomstick")
-@click.argument("well", type=click.Path(dir_okay=False))
+@click.argument("well", type=click.Path(dir_okay=False), required=False)
 @click.argument("more_friction", nargs=-1, type=float, metavar="")
-@click.option("--string", "string", type=click.Path(dir_okay=False), required=True, help="drill string file (TOML)")
-@click.option("--friction", type=float, multiple=True, required=True,
+@click.option("--string", "string", type=click.Path(dir_okay=False), default=None, help="drill string file (TOML)")
+@click.option("--friction", type=float, multiple=True,
               help="friction factors, one curve each (--friction 0.15 --friction 0.25, or --friction 0.15 0.25 0.35)")
-@click.option("--depth", nargs=2, type=float, required=True, help="bit depths from A to B, m")
+@click.option("--depth", nargs=2, type=float, default=None, help="bit depths from A to B, m")
 @click.option("--points", type=int, default=11, show_default=True, help="depths between A and B")
 @click.option("--mud-density", type=float, default=None, help="mud density, kg/m^3 (default: the string file's)")
 @click.option("-o", "--output", "png", type=click.Path(dir_okay=False), default="broom.png", show_default=True)
-@click.option("--out", "h5", type=click.Path(dir_okay=False), default=None, help="HDF5 file of every point")
+@click.option("--out", "h5", type=click.Path(dir_okay=False), default=None,
+              help="HDF5 file of every point, written again as each is solved")
+@click.option("--resume", "resume_file", type=click.Path(dir_okay=False), default=None,
+              help="finish an interrupted broomstick's --out file in place (its own well, string and cases)")
 @click.option("--jobs", type=int, default=None, help="parallel jobs (default: the cores)")
 @click.option("--overwrite", is_flag=True, help="replace existing outputs")
-def broomstick_command(well, more_friction, string, friction, depth, points, mud_density, png, h5, jobs, overwrite):
+@click.option("--quiet", is_flag=True, help="no progress display")
+def broomstick_command(well, more_friction, string, friction, depth, points, mud_density, png, h5, resume_file, jobs,
+                       overwrite, quiet):
     """Hook load against bit depth for pick-up, slack-off and rotating off bottom, one curve per friction
-    factor, the soft-string estimate beside each, and the surface torque against depth."""
+    factor, the soft-string estimate beside each, and the surface torque against depth. With --out, the file
+    holds every equilibrium solved so far; --resume B.h5 finishes an interrupted one."""
+    if jobs is not None and jobs < 0:
+        raise click.UsageError(f"--jobs must be 0 (the cores) or more, got {jobs}")
+    if resume_file is not None:
+        h5, run = _resumed_broom(resume_file, well, more_friction, string, friction, depth, mud_density, png, h5,
+                                 overwrite, jobs)
+    else:
+        h5, run = _new_broom(well, more_friction, string, friction, depth, points, mud_density, png, h5, overwrite,
+                             jobs)
+    br = _run_broom(run, h5, quiet)
+    for op, mu, d, why in br.failures:
+        click.echo(f"rodcont: warning: {op}, mu {mu:g}, depth {d:g}: {why}", err=True)
+    _write_plot(br, png)
+    i = -1  # the deepest point of each curve, as name value lines
+    for k, op in enumerate(br.operations):
+        for j, mu in enumerate(br.mus):
+            click.echo(f"hook_load {op} {mu:g} {float(br.hook_load[i, k, j])!r}")
+    for j, mu in enumerate(br.mus):
+        click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
+    click.echo(f"plot {png}")
+    if h5 is not None:
+        click.echo(f"wrote {h5}", err=True)  # as solve and trace say their file
+
+
+def _new_broom(well, more_friction, string, friction, depth, points, mud_density, png, h5, overwrite, jobs):
+    """``(out, run)`` of a new broomstick, every input and output checked first (one line each)."""
     import numpy as np
 
     from ..drivers.broomstick import broomstick
+    missing = [name for name, v in (("WELL.toml", well), ("--string", string), ("--friction", friction),
+                                    ("--depth", depth)) if not v]
+    if missing:
+        raise click.UsageError(f"broomstick needs {', '.join(missing)} (or --resume B.h5 to finish one)")
     # click's options take one value each: the further numbers of --friction 0.15 0.25 0.35 arrive as arguments
     friction = [_check("friction", f, nonnegative=True) for f in tuple(friction) + tuple(more_friction)]
-    if jobs is not None and jobs < 0:
-        raise click.UsageError(f"--jobs must be 0 (the cores) or more, got {jobs}")
     if len(set(friction)) < len(friction):
         raise click.UsageError(f"--friction {next(f for f in friction if friction.count(f) > 1):g} is given twice: "
                                f"give each factor once")
@@ -289,19 +323,95 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
         raise click.UsageError(f"--depth {b:g} lies beyond the survey's end ({w.total_depth:g} m)")
     _check_depths(w, a)
     _check_broom_outputs(png, h5, _inputs(well, string, w), overwrite)
-    br = broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs)
-    for op, mu, d, why in br.failures:
-        click.echo(f"rodcont: warning: {op}, mu {mu:g}, depth {d:g}: {why}", err=True)
-    _write_broom(br, png, h5, dict(well=os.path.abspath(well), string=os.path.abspath(string)))
-    i = -1  # the deepest point of each curve, as name value lines
-    for k, op in enumerate(br.operations):
-        for j, mu in enumerate(br.mus):
-            click.echo(f"hook_load {op} {mu:g} {float(br.hook_load[i, k, j])!r}")
-    for j, mu in enumerate(br.mus):
-        click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
-    click.echo(f"plot {png}")
-    if h5 is not None:
-        click.echo(f"wrote {h5}", err=True)  # as solve and trace say their file
+    meta = dict(well=os.path.abspath(well), string=os.path.abspath(string))
+
+    def run(callback):
+        return broomstick(w, s, np.linspace(a, b, points), friction, jobs=jobs, callback=callback, out=h5, meta=meta)
+    return h5, run
+
+
+def _resumed_broom(path, well, more_friction, string, friction, depth, mud_density, png, h5, overwrite, jobs):
+    """``(out, run)`` that finishes the broomstick file ``path`` in place: its own well, string, friction factors
+    and depths (each given again is refused), the plot checked as a new one's is."""
+    from ..branchfile import same_file
+    from ..drivers.broomstick import read_broomstick, resume_broomstick
+    from .common import explicit
+    given = [name for name, v in (("WELL.toml", well), ("--string", string), ("--friction", friction or more_friction),
+                                  ("--depth", depth), ("--mud-density", mud_density)) if v]
+    given += ["--points"] if explicit("points") else []
+    if given:
+        raise click.UsageError(f"--resume finishes {path} with its own well, string, friction factors and depths: "
+                               f"drop {given[0]}")
+    if h5 is not None and not same_file(h5, path):
+        raise click.UsageError(f"--resume finishes {path} in place: drop --out {h5} (or resume a copy)")
+    if not os.path.isfile(path):
+        raise click.UsageError(f"--resume {path}: no such file")
+    try:
+        b0 = read_broomstick(path)
+    except ValueError as exc:
+        raise click.UsageError(str(exc)) from None
+    inputs = [p for p in (b0.attrs.get("well"), b0.attrs.get("string")) if isinstance(p, str) and os.path.isfile(p)]
+    _check_broom_outputs(png, None, tuple(inputs) + (path,), overwrite)  # -o onto the file: 'is the input file'
+
+    def run(callback):
+        return resume_broomstick(path, jobs=jobs, callback=callback)
+    return path, run
+
+
+class _BroomProgress:
+    """The broomstick's callback: a line on stderr a few seconds apart (rewritten in place on a terminal), and
+    an interrupt taken between two equilibria or while the workers solve (``idle``)."""
+
+    def __init__(self, quiet: bool, interrupts):
+        import time
+        self.quiet, self.interrupts, self.tty = quiet, interrupts, sys.stderr.isatty()
+        self.t0, self.last, self.clock = time.perf_counter(), 0.0, time.perf_counter
+
+    def __call__(self, b, cell) -> None:
+        op, mu, k = cell
+        now = self.clock()
+        if not self.quiet and (self.tty or now - self.last > 5.0):
+            at = b.cell(op, mu, k)
+            msg = (f"equilibrium {int(b.complete.sum()):4d} of {b.complete.size}  {op} mu {mu:g} depth "
+                   f"{b.depths[k]:g} m  hook_load {b.hook_load[at] / 1e3:.1f} kN  {now - self.t0:6.1f} s")
+            click.echo(("\r" + msg) if self.tty else msg, nl=not self.tty, err=True)
+            self.last = now
+        self.idle()
+
+    def idle(self) -> None:
+        self.interrupts.check()
+
+    def done(self) -> None:
+        if self.tty and not self.quiet:
+            click.echo("", err=True)
+
+
+def _run_broom(run, out, quiet):
+    """``run(callback)`` with progress and Ctrl-C or SIGTERM between equilibria: on an interrupt, what ``out``
+    holds is said and the command exits 130 (143)."""
+    from ..drivers.broomstick import read_broomstick
+    from .common import file_identity
+    from .progress import Interrupts
+    before = file_identity(out) if out is not None else None
+    with Interrupts() as intr:
+        progress = _BroomProgress(quiet, intr)
+        try:
+            return run(progress)
+        except KeyboardInterrupt:
+            pass
+        except ValueError as exc:
+            raise click.UsageError(str(exc)) from None
+        finally:
+            progress.done()
+    if out is None:
+        click.echo("interrupted: nothing kept (--out B.h5 keeps each equilibrium as it is solved)", err=True)
+    elif file_identity(out) == before:
+        click.echo(f"interrupted before the first equilibrium: {out} is as it was", err=True)
+    else:
+        b = read_broomstick(out)
+        click.echo(f"interrupted: {out} holds {int(b.complete.sum())} of the {b.complete.size} equilibria; finish "
+                   f"it with rodcont broomstick --resume {out}", err=True)
+    sys.exit(intr.exit_code)
 
 
 def _say_interrupted(out, before) -> None:
@@ -332,16 +442,12 @@ def _check_broom_outputs(png, h5, inputs, overwrite) -> None:
         raise click.UsageError(f"-o and --out name the same file {h5}: give two names")
 
 
-def _write_broom(br, png, h5, meta) -> None:
-    """The plot and the points' file published together (:class:`rodcont.safeio.Staged`): where either cannot be
-    written, neither is (an old file stays as it was)."""
-    from ..drivers.broomstick import broomstick_image, broomstick_picture
-    from ..safeio import Staged
-    with Staged() as stage:
-        stage.add(png, broomstick_picture(br, png)[0])
-        if h5 is not None:
-            stage.add(h5, broomstick_image(br, meta))
-        stage.commit()
+def _write_plot(br, png) -> None:
+    """The broomstick's plot, written beside ``png`` and renamed over it (:func:`rodcont.safeio.publish`); the
+    points' file is already whole (published after each equilibrium)."""
+    from ..drivers.broomstick import broomstick_picture
+    from ..safeio import publish
+    publish(png, broomstick_picture(br, png)[0])
 
 
 def register(group) -> None:

@@ -5,14 +5,17 @@ Each ``(operation, friction factor)`` is one job (:func:`broom_job`, a plain top
 ``concurrent.futures`` executor, the default a local process pool as :func:`rodcont.drivers.sweep.sweep` uses;
 the broomstick submits one job a depth (:func:`broom_tasks`: each depth is its own cold start of
 :func:`rodcont.drilling.torque_and_drag`, so the split changes no answer), the deepest first. A depth that
-fails is stored as NaN with its reason; the others go on.
+fails is stored as NaN with its reason; the others go on. Each finished equilibrium is filled in as it comes
+(:meth:`Broomstick.fill`, then the ``callback``), so a broomstick interrupted is kept as far as it went
+(``complete`` says which cells) and one started from it (``start=``) solves only the rest.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import time
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +23,9 @@ import numpy as np
 from ..blas import with_one_blas_thread
 
 OPERATIONS = ("pick-up", "slack-off", "rotate")
+#: the arrays of a broomstick, one number per depth, operation and friction factor
+BROOM_KEYS = ("hook_load", "surface_torque", "soft_hook_load", "soft_surface_torque", "side_force", "error", "N",
+              "buckling_ratio", "max_compression")
 
 
 @with_one_blas_thread
@@ -27,9 +33,7 @@ def broom_job(well, string, depths, operation: str, mu: float, options: dict) ->
     """One curve: the stiff and the soft string at every depth for ``operation`` and ``mu``."""
     from ..drilling import buckling_ratio, soft_string, torque_and_drag
     n = len(depths)
-    out = {key: np.full(n, np.nan) for key in ("hook_load", "surface_torque", "soft_hook_load",
-                                               "soft_surface_torque", "side_force", "error", "N", "buckling_ratio",
-                                               "max_compression")}
+    out = {key: np.full(n, np.nan) for key in BROOM_KEYS}
     out["failures"] = []
     t0 = time.perf_counter()
     for i, d in enumerate(depths):
@@ -51,7 +55,9 @@ class Broomstick:
     """Arrays ``(len(depths), len(operations), len(mus))``: ``hook_load``, ``surface_torque``, their soft-string
     estimates ``soft_hook_load``, ``soft_surface_torque``, ``side_force``, ``error``, ``N``, the string's largest
     ``buckling_ratio`` and ``max_compression`` (N, 0 in tension); ``failures``
-    ``[(operation, mu, depth, reason)]``, ``elapsed`` (s) per job."""
+    ``[(operation, mu, depth, reason)]``, ``elapsed`` (s) per job; ``complete`` (bool, same shape) where the
+    equilibrium was solved or failed (False: not reached, NaN; all True unless given); ``attrs`` a file's
+    attributes (:func:`read_broomstick`)."""
 
     depths: np.ndarray
     operations: tuple
@@ -59,6 +65,20 @@ class Broomstick:
     data: dict
     failures: list = field(default_factory=list)
     elapsed: dict = field(default_factory=dict)
+    complete: np.ndarray | None = None
+    attrs: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.complete is None:
+            self.complete = np.ones((len(self.depths), len(self.operations), len(self.mus)), bool)
+
+    @classmethod
+    def empty(cls, depths, operations, mus) -> Broomstick:
+        """A broomstick with no equilibrium yet: every array NaN, nothing ``complete``."""
+        shape = (len(depths), len(operations), len(mus))
+        return cls(np.asarray(depths, float), tuple(operations), tuple(float(m) for m in mus),
+                   {key: np.full(shape, np.nan) for key in BROOM_KEYS}, [],
+                   {(op, float(mu)): 0.0 for op in operations for mu in mus}, np.zeros(shape, bool))
 
     def __getattr__(self, name):
         data = self.__dict__.get("data", {})
@@ -66,14 +86,120 @@ class Broomstick:
             return data[name]
         raise AttributeError(name)
 
+    def cell(self, op: str, mu: float, k: int) -> tuple:
+        """The index ``(depth, operation, friction)`` of depth number ``k`` of ``op`` at ``mu``."""
+        return k, self.operations.index(op), self.mus.index(float(mu))
+
+    def fill(self, op: str, mu: float, k: int, res: dict) -> None:
+        """Depth number ``k`` of ``op`` at ``mu`` from a one-depth :func:`broom_job`'s ``res``."""
+        at = self.cell(op, mu, k)
+        for key in self.data:
+            self.data[key][at] = res[key][0]
+        self.failures += [(op, float(mu), d, why) for d, why in res["failures"]]
+        self.elapsed[(op, float(mu))] = self.elapsed.get((op, float(mu)), 0.0) + res["elapsed"]
+        self.complete[at] = True
+
+    def same_cases(self, depths, operations, mus) -> bool:
+        """Whether this broomstick's depths, operations and friction factors are these, in this order."""
+        d = np.asarray(depths, float)
+        return (self.depths.shape == d.shape and bool(np.array_equal(self.depths, d))
+                and tuple(self.operations) == tuple(operations) and self.mus == tuple(float(m) for m in mus))
+
 
 def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Executor | None = None,
-               jobs: int | None = None, **options) -> Broomstick:
+               jobs: int | None = None, callback=None, start: Broomstick | None = None, out: str | None = None,
+               meta: dict | None = None, **options) -> Broomstick:
     """The broomstick of ``string`` in ``well`` at ``depths`` (m, bit MD) for each friction factor of ``mus``
-    and each operation; ``options`` go to :func:`rodcont.drilling.torque_and_drag` (``N_max``, ``max_error``)."""
-    from .sweep import _worker_init
+    and each operation; ``options`` go to :func:`rodcont.drilling.torque_and_drag` (``N_max``, ``max_error``).
+    ``callback(b, (operation, mu, k))`` is called in this process after each equilibrium is filled in (its
+    ``idle()``, where it has one, every 0.2 s while the jobs run: an exception from either stops the jobs and
+    is raised, ``b`` kept as far as it went). ``start``: a broomstick of the same depths, operations and friction
+    factors whose ``complete`` cells are kept (copied), not solved again. ``out``: the broomstick's file
+    (:func:`write_broomstick`, ``meta`` and the record :func:`resume_broomstick` rebuilds the run from as its
+    attributes), published again after each equilibrium: an interrupted run keeps every one it finished."""
+    from .sweep import _stop_workers, _worker_init
     depths = np.asarray(depths, float)
     mus = [float(mu) for mu in mus]
+    _check_cases(well, depths, mus, operations, jobs)
+    b = Broomstick.empty(depths, operations, mus)
+    if start is not None:
+        _carry(b, start)
+    if out is not None:
+        callback = _Checkpoint(out, {**(meta or {}), "drilling": run_record(well, string, options)}, callback)
+    cases = [(op, mu) for op in operations for mu in mus]
+    tasks = [t for t in broom_tasks(depths, cases) if not b.complete[b.cell(t[0], t[1], t[2])]]
+    if not tasks:
+        return b
+    own = executor is None
+    if own:
+        jobs = jobs or os.cpu_count() or 1
+        executor = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), initializer=_worker_init)
+    futures, finished = {}, False
+    try:
+        futures = {executor.submit(broom_job, well, string, depths[i:i + 1], op, mu, options): (op, mu, i)
+                   for op, mu, i in tasks}
+        _collect(futures, b, callback)
+        finished = True
+    finally:
+        if not finished:
+            for future in futures:
+                future.cancel()
+        if own:
+            if not finished:  # an interrupt or an error: the jobs still running are not waited for
+                _stop_workers(executor)
+            executor.shutdown(wait=True, cancel_futures=True)
+    return b
+
+
+class _Checkpoint:
+    """The callback that publishes the broomstick to ``path`` after each equilibrium, then calls ``then``
+    (its ``idle`` passed on)."""
+
+    def __init__(self, path: str, meta: dict, then=None):
+        self.path, self.meta, self.then = path, meta, then
+        self.idle = getattr(then, "idle", None)
+
+    def __call__(self, b: Broomstick, cell: tuple) -> None:
+        write_broomstick(b, self.path, self.meta)
+        if self.then is not None:
+            self.then(b, cell)
+
+
+def run_record(well, string, options: dict) -> str:
+    """The JSON a broomstick's file keeps (attribute ``drilling``) to be finished by :func:`resume_broomstick`:
+    the well and the string (:func:`rodcont.drilling.well_and_string_record`) and the solve's ``options``."""
+    from ..drilling import RECORD_VERSION, well_and_string_record
+    return json.dumps(dict(version=RECORD_VERSION, **well_and_string_record(well, string), options=dict(options)))
+
+
+def resume_broomstick(path: str, *, executor: Executor | None = None, jobs: int | None = None,
+                      callback=None) -> Broomstick:
+    """The broomstick of the file ``path`` (an interrupted ``rodcont broomstick --out``) finished in place: its
+    well, string and options from its record (:func:`run_record`), its complete cells kept, the others solved
+    (:func:`broomstick` with ``start``); a ``ValueError`` (one line) for a file it cannot finish."""
+    from ..drilling import RECORD_VERSION, DrillingError, well_and_string_back
+    b0 = read_broomstick(path)
+    text = b0.attrs.get("drilling")
+    if not isinstance(text, str):
+        raise ValueError(f"{path} keeps no record of its well and string (written before broomsticks could be "
+                         f"resumed): run it again")
+    try:
+        rec = json.loads(text)
+        version = int(rec.get("version", 0))
+        well, string = well_and_string_back(rec)
+        options = dict(rec.get("options", {}))
+    except (ValueError, KeyError, TypeError, AttributeError, DrillingError) as exc:
+        raise ValueError(f"{path}: a damaged broomstick record ({type(exc).__name__}: {exc})") from None
+    if version > RECORD_VERSION:
+        raise ValueError(f"{path}: its record is version {version}, newer than this rodcont's ({RECORD_VERSION}): "
+                         f"update rodcont")
+    meta = {key: v for key, v in b0.attrs.items() if key not in ("kind", "status", "drilling")}
+    return broomstick(well, string, b0.depths, b0.mus, b0.operations, executor=executor, jobs=jobs,
+                      callback=callback, start=b0, out=path, meta=meta, **options)
+
+
+def _check_cases(well, depths, mus, operations, jobs) -> None:
+    """Each friction factor and operation once, ``jobs`` a count, each depth inside the well (one line each)."""
     for what, values in (("friction factor", mus), ("operation", list(operations))):
         twice = [v for v in values if values.count(v) > 1]
         if twice:  # one curve each: a second copy's cells were never filled (uninitialised numbers printed)
@@ -82,29 +208,46 @@ def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Ex
         raise ValueError(f"jobs must be a non-negative integer (0: the cores), got {jobs!r}")
     for d in depths:  # refused here in one line, not as a failure of every job at that depth
         well.check_depth(d)
-    cases = [(op, mu) for op in operations for mu in mus]
-    tasks = broom_tasks(depths, cases)
-    own = executor is None
-    if own:
-        jobs = jobs or os.cpu_count() or 1
-        executor = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), initializer=_worker_init)
-    try:
-        futures = {executor.submit(broom_job, well, string, depths[i:i + 1], op, mu, options): (op, mu, i)
-                   for op, mu, i in tasks}
-        done = {futures[f]: f.result() for f in futures}
-    finally:
-        if own:
-            executor.shutdown(wait=True, cancel_futures=True)
-    shape = (depths.size, len(operations), len(mus))
-    data = {key: np.empty(shape) for key in next(iter(done.values())) if key not in ("failures", "elapsed")}
-    failures, elapsed = [], {case: 0.0 for case in cases}
-    for (op, mu, k), res in sorted(done.items(), key=lambda item: item[0][2]):
-        i, j = list(operations).index(op), list(mus).index(mu)
-        for key in data:
-            data[key][k, i, j] = res[key][0]
-        failures += [(op, mu, d, why) for d, why in res["failures"]]
-        elapsed[(op, mu)] += res["elapsed"]
-    return Broomstick(depths, tuple(operations), tuple(float(m) for m in mus), data, failures, elapsed)
+
+
+def _carry(b: Broomstick, start: Broomstick) -> None:
+    """``start``'s complete cells copied into ``b`` (the same cases, else a ``ValueError``)."""
+    if not start.same_cases(b.depths, b.operations, b.mus):
+        raise ValueError("the broomstick to start from has other depths, operations or friction factors")
+    done = np.asarray(start.complete, bool)
+    for key in b.data:
+        if key in start.data:
+            b.data[key][done] = np.asarray(start.data[key])[done]
+        elif done.any():
+            raise ValueError(f"the broomstick to start from has no {key!r}")
+    b.complete[done] = True
+    b.failures += list(start.failures)  # each a complete cell's (a failed depth is an answer, NaN)
+    for case, t in start.elapsed.items():
+        b.elapsed[case] = b.elapsed.get(case, 0.0) + t
+
+
+def _collect(futures: dict, b: Broomstick, callback) -> None:
+    """Each job's result filled into ``b`` as it ends (those ending together in the order submitted), then
+    ``callback``; its ``idle()`` before each wait of at most 0.2 s, and before a job's error is raised (a
+    SIGTERM to the process group ends the workers too: the interrupt, not their broken pool, is said)."""
+    order = {f: n for n, f in enumerate(futures)}
+    idle = getattr(callback, "idle", None)
+    pending = set(futures)
+    while pending:
+        if idle is not None:
+            idle()
+        done, pending = wait(pending, timeout=None if idle is None else 0.2, return_when=FIRST_COMPLETED)
+        for future in sorted(done, key=order.get):
+            try:
+                res = future.result()
+            except BaseException:
+                if idle is not None:
+                    idle()
+                raise
+            op, mu, k = futures[future]
+            b.fill(op, mu, k, res)
+            if callback is not None:
+                callback(b, (op, mu, k))
 
 
 def broom_tasks(depths, cases) -> list:
@@ -148,8 +291,10 @@ def write_broomstick(b: Broomstick, path: str, meta: dict | None = None) -> None
 
 def broomstick_image(b: Broomstick, meta: dict | None = None) -> bytes:
     """The bytes of the broomstick's HDF5 file: ``depth``, ``friction``, ``operations`` and one dataset per array
-    of :class:`Broomstick` (``depth x operation x friction``), ``meta`` as attributes. Built in memory, so that
-    it and the plot can be published together (:class:`rodcont.safeio.Staged`)."""
+    of :class:`Broomstick` (``depth x operation x friction``), ``complete`` (bool) and ``failure`` (the reason
+    a cell failed, empty where it did not), ``meta`` as attributes and ``status`` (``complete``, or
+    ``interrupted`` while cells are missing). Built in memory, so that it and the plot can be published
+    together (:class:`rodcont.safeio.Staged`)."""
     import io
 
     import h5py
@@ -158,32 +303,59 @@ def broomstick_image(b: Broomstick, meta: dict | None = None) -> bytes:
         f.attrs["kind"] = "broomstick"
         for key, v in (meta or {}).items():
             f.attrs[key] = v
+        f.attrs["status"] = "complete" if b.complete.all() else "interrupted"
         f["depth"] = b.depths
         f["friction"] = np.asarray(b.mus)
         f["operations"] = np.array(b.operations, dtype=h5py.string_dtype())
         for key, v in b.data.items():
             f[key] = v
+        f["complete"] = np.asarray(b.complete, bool)
+        f["failure"] = np.array(_failure_cells(b), dtype=h5py.string_dtype())
         if "buckling_ratio" in b.data:
             for key, v in buckling_onsets(b).items():  # (operation x friction) bit depths, NaN: none
                 f[key] = v
     return buf.getvalue()
 
 
+def _failure_cells(b: Broomstick) -> np.ndarray:
+    """The reasons of ``b.failures`` on the broomstick's cells (``""`` where none)."""
+    cells = np.full(b.complete.shape, "", dtype=object)
+    for op, mu, d, why in b.failures:
+        k = np.flatnonzero(b.depths == d)
+        if k.size:
+            cells[b.cell(op, mu, int(k[0]))] = why
+    return cells
+
+
 def read_broomstick(path: str) -> Broomstick:
-    """The broomstick a file of :func:`write_broomstick` holds (its arrays, depths, operations, friction factors);
-    a ``ValueError`` (one line) for another file."""
+    """The broomstick a file of :func:`write_broomstick` holds (its arrays, depths, operations, friction factors,
+    ``complete`` cells, failures and attributes); a ``ValueError`` (one line) for another file."""
     import h5py
     try:
         with h5py.File(path, "r") as f:
             if f.attrs.get("kind") != "broomstick":
                 raise ValueError(f"{path}: not a broomstick file (rodcont broomstick --out)")
-            ops = tuple(v.decode() if isinstance(v, bytes) else str(v) for v in f["operations"][()])
-            skip = {"depth", "friction", "operations", "sinusoidal_buckling", "helical_buckling"}
+            ops = tuple(_text(v) for v in f["operations"][()])
+            skip = {"depth", "friction", "operations", "sinusoidal_buckling", "helical_buckling", "complete",
+                    "failure"}
             data = {key: np.asarray(f[key][()], float) for key in f if key not in skip}
-            return Broomstick(np.asarray(f["depth"][()], float), ops,
-                              tuple(float(m) for m in f["friction"][()]), data)
-    except (OSError, KeyError) as exc:
+            b = Broomstick(np.asarray(f["depth"][()], float), ops, tuple(float(m) for m in f["friction"][()]), data,
+                           attrs={key: _text(v) for key, v in f.attrs.items()})
+            if "complete" in f:  # files before the resume: whole
+                b.complete = np.asarray(f["complete"][()], bool)
+                for at in zip(*np.nonzero(np.vectorize(len)(f["failure"][()].astype(object)))):
+                    why = _text(f["failure"][at])
+                    b.failures.append((ops[at[1]], b.mus[at[2]], float(b.depths[at[0]]), why))
+            if b.complete.shape != (b.depths.size, len(ops), len(b.mus)):
+                raise ValueError(f"{path}: a damaged broomstick file (its cells do not match its depths)")
+            return b
+    except (OSError, KeyError, TypeError, IndexError) as exc:
         raise ValueError(f"{path}: not a readable broomstick file ({type(exc).__name__}: {exc})") from None
+
+
+def _text(v):
+    """An HDF5 string (bytes or str) as ``str``; anything else as it is."""
+    return v.decode() if isinstance(v, bytes) else (str(v) if isinstance(v, np.str_) else v)
 
 
 def is_broomstick_file(path: str) -> bool:

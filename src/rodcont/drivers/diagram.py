@@ -581,6 +581,7 @@ def _trace_seeds_parallel(dg: Diagram, rod, T, N, k, seeds, crit, bopts, writer,
         from .sweep import _worker_init
         executor = ProcessPoolExecutor(max_workers=min(jobs or usable_cores(), 2 * len(seeds) + 1),
                                        initializer=_worker_init)
+    from .sweep import _stop_workers
     finished, futures = False, []
     try:
         args = (rod, T, N, k)
@@ -615,14 +616,6 @@ def _result(future, callback):
         except Pending:
             pass
     return future.result()
-
-
-def _stop_workers(executor) -> None:
-    """Kill a process pool's workers (SIGKILL: a worker forked inside the command line's interrupt handler
-    takes SIGTERM as a request to stop at its next point, which it has no callback to see)."""
-    for process in list(getattr(executor, "_processes", {}).values()):
-        if process.is_alive():
-            process.kill()
 
 
 def _keep_traced(dg: Diagram, rod, T, k, phi, crit, down, up, writer, callback, note, ends) -> None:

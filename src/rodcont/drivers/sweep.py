@@ -82,6 +82,14 @@ def _silent_stop(signum, frame):
     raise SystemExit(143)  # unwinds the job's own cleanup (a sweep's worker writes its branch file)
 
 
+def _stop_workers(executor) -> None:
+    """Kill a process pool's workers (SIGKILL: a worker forked inside the command line's interrupt handler
+    takes SIGTERM as a request to stop at its next point, which it has no callback to see)."""
+    for process in list(getattr(executor, "_processes", {}).values()):
+        if process.is_alive():
+            process.kill()
+
+
 def sweep(gammas, out_dir: str, rod: RodParameters | None = None, N: int = 15, k: int = 5, jobs: int | None = None,
           executor: Executor | None = None, progress: bool = False, plot: bool = True, diagram: bool = False,
           overwrite: bool = False, **options) -> dict:
