@@ -175,13 +175,14 @@ def test_a_weight_on_bit_beyond_the_pipes_axial_stiffness_is_refused(tmp_path):
     assert not os.listdir(tmp_path)
 
 
-def test_resuming_a_trip_file_is_refused_in_one_line(tmp_path):
-    # seen: exit 2, 'param must be one of phi_L, T, w, EI, GJ, EA, gamma, torque, l0, got 'depth''
+def test_resuming_a_solves_point_file_is_refused_in_one_line(tmp_path):
+    # seen: exit 2, 'param must be one of phi_L, T, w, EI, GJ, EA, gamma, torque, l0, got 'depth''; a trip's file
+    # is resumed (tests/test_trip_resume.py), a solve's one equilibrium in the same layout is not a trip
     p = str(tmp_path / "p.h5")
     assert _run("solve", "--conduit", WELL, "--string", STRING, "--depth", "300", "--operation", "pick-up",
                 "--out", p).returncode == 0
     before = open(p, "rb").read()
-    _one_line_error(_run("trace", "--resume", p), "is a trip in bit depth", "run the trip again")
+    _one_line_error(_run("trace", "--resume", p), "holds one equilibrium (rodcont solve --out), not a trip")
     assert open(p, "rb").read() == before
 
 

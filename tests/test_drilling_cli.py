@@ -198,11 +198,13 @@ def test_an_interrupted_trip_says_how_many_depths_its_file_holds(tmp_path, inter
     values = {key: None for key in DRILLING_KEYS}
     values["string"] = STRING
     out = str(tmp_path / "t.h5")
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(SystemExit) as stop:
         run_drilling_trace(WELL, values, "depth", (100.0, 200.0), out, points=5)
-    assert "interrupted: " + out + " holds the 2 completed depth(s) of the trip" in capsys.readouterr().err
+    assert stop.value.code == 130
+    assert "interrupted: " + out + " holds the 2 completed depth(s) of the trip; go on with rodcont trace " \
+        "--resume " + out in capsys.readouterr().err
     interrupt_solve(1)
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(SystemExit):
         run_drilling_trace(WELL, values, "depth", (100.0, 200.0), str(tmp_path / "u.h5"), points=5)
     assert "interrupted before the first depth" in capsys.readouterr().err
 

@@ -203,13 +203,12 @@ def joints_csv(j: dict) -> str:
 
 
 def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, out: str | None,
-                       overwrite: bool = False, points: int = 11, echo=click.echo):
+                       overwrite: bool = False, points: int = 11, echo=click.echo, quiet: bool = False):
     """``trace --param depth --range A B --string S.toml --conduit WELL.toml [--operation OP] [--out F.h5]``: the
     trip in bit depth (:func:`rodcont.drivers.trip.trip`, ``points`` depths; slack-off from A down to B,
     pick-up from B up) and ``name value`` lines: ``points``, ``status``, ``hook_load`` and ``surface_torque`` at
-    the trip's last point, ``lock_up`` (m) when it locks up. Returns the :class:`rodcont.branch.Branch`."""
-    from ..drilling import DrillingError
-    from ..drivers.solve import ConvergenceError
+    the trip's last point, ``lock_up`` (m) when it locks up (:func:`tripped`: progress on stderr, Ctrl-C between
+    depths, ``quiet``). Returns the :class:`rodcont.branch.Branch`."""
     from ..drivers.trip import trip
     from ..loads import motion_name
     if param != "depth":
@@ -231,22 +230,39 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
             raise click.UsageError(str(exc)) from None
     op = values.get("operation") or (motion_name(values.get("trip_speed"), None) if values.get("trip_speed")
                                      else "slack-off")
-    from .common import file_identity
-    before = file_identity(out) if out is not None else None
     joint_length = _joint_length(values, b)
-    try:
-        br = trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite,
-                  mu=_check("friction", values.get("friction"), nonnegative=True),
-                  trip_speed=values.get("trip_speed"), rpm=values.get("rpm"),
-                  wob=_check("wob", values.get("wob") or 0.0, nonnegative=True),
-                  bit_torque=values.get("bit_torque") or 0.0, joint_length=joint_length)
-    except KeyboardInterrupt:
+    mu = _check("friction", values.get("friction"), nonnegative=True)
+    wob = _check("wob", values.get("wob") or 0.0, nonnegative=True)
+
+    def run(callback):
+        return trip(well, string, (a, b), op, points=points, out=out, overwrite=overwrite, mu=mu,
+                    trip_speed=values.get("trip_speed"), rpm=values.get("rpm"), wob=wob,
+                    bit_torque=values.get("bit_torque") or 0.0, joint_length=joint_length, callback=callback)
+    return tripped(run, out, points, quiet, echo)
+
+
+def tripped(run, out, points: int, quiet: bool, echo=click.echo):
+    """``run(callback)``, a trip, with a progress line on stderr a few seconds apart and Ctrl-C or SIGTERM taken
+    between two depths (what ``out`` holds is said, exit 130 / 143); then its ``name value`` lines. Returns the
+    :class:`rodcont.branch.Branch`."""
+    from ..drilling import DrillingError
+    from ..drivers.solve import ConvergenceError
+    from .common import file_identity
+    from .progress import Interrupts
+    before = file_identity(out) if out is not None else None
+    with Interrupts() as intr:
+        progress = _TripProgress(quiet, intr, points)
+        try:
+            br = run(progress)
+        except KeyboardInterrupt:
+            br = None
+        except (DrillingError, ValueError) as exc:
+            raise click.UsageError(str(exc)) from None
+        except ConvergenceError as exc:
+            raise click.ClickException(str(exc)) from None
+    if br is None:
         _say_interrupted(out, before)
-        raise
-    except (DrillingError, ValueError) as exc:
-        raise click.UsageError(str(exc)) from None
-    except ConvergenceError as exc:
-        raise click.ClickException(str(exc)) from None
+        sys.exit(intr.exit_code)
     echo(f"points {len(br)}")
     echo(f"status {br.status}")
     echo(f"hook_load {float(br.table['hook_load'][-1])!r}")
@@ -415,16 +431,40 @@ def _run_broom(run, out, quiet):
 
 
 def _say_interrupted(out, before) -> None:
-    """An interrupted trip's line: how many depths its file holds (as an interrupted trace says), or that it
-    published none."""
+    """An interrupted trip's line: how many depths its file holds and how to go on (as an interrupted trace says),
+    or that it published none."""
     from .common import file_identity
     if out is None:
+        click.echo("interrupted: nothing kept (--out F.h5 keeps each depth as it is solved)", err=True)
         return
     if file_identity(out) == before:
         click.echo(f"interrupted before the first depth: {out} is as it was", err=True)
         return
     from ..branchfile import load_branch
-    click.echo(f"interrupted: {out} holds the {len(load_branch(out))} completed depth(s) of the trip", err=True)
+    click.echo(f"interrupted: {out} holds the {len(load_branch(out))} completed depth(s) of the trip; go on with "
+               f"rodcont trace --resume {out}", err=True)
+
+
+class _TripProgress:
+    """A trip's callback: ``depth K of N  D m  hook_load H kN  T s`` on stderr a few seconds apart (every depth on
+    a terminal), an event's line as it is found, and an interrupt taken after each recorded point."""
+
+    def __init__(self, quiet: bool, interrupts, points: int):
+        import time
+        self.quiet, self.interrupts, self.points, self.tty = quiet, interrupts, points, sys.stderr.isatty()
+        self.clock, self.t0, self.last, self.n = time.perf_counter, time.perf_counter(), 0.0, 0
+
+    def __call__(self, r, row) -> None:
+        kind = str(row["kind"])
+        self.n += not kind.startswith("event:")
+        now = self.clock()
+        if not self.quiet and (self.tty or kind.startswith("event:") or now - self.last > 5.0):
+            what = kind[6:].replace("_", " ") + " at" if kind.startswith("event:") else \
+                f"depth {self.n} of {self.points}"
+            click.echo(f"{what} {r.depth:g} m  hook_load {r.hook_load / 1e3:.1f} kN  {now - self.t0:6.1f} s",
+                       err=True)
+            self.last = now
+        self.interrupts.check()
 
 
 def _check_broom_outputs(png, h5, inputs, overwrite) -> None:

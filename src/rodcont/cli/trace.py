@@ -80,10 +80,8 @@ def trace(**given):
     a = SimpleNamespace(**given)
     if a.string is not None or a.param == "depth":
         return _trace_string(a)
-    said = explicit(*DRILLING_KEYS)
-    if said:
-        raise UserError(f"--{said[0].replace('_', '-')} is an option of a drill string: give --string S.toml "
-                        f"(and the well as --conduit WELL.toml)")
+    if a.resume_file is None:  # a trip's file refuses them as its own (_resume_trip), a trace's as here
+        _no_drilling_options()
     kw = trace_kwargs(a)
     kw["direction"] = 1 if a.direction == "up" else -1
     if a.resume_file is not None:
@@ -102,6 +100,14 @@ def trace(**given):
     _trace_from_start(a, kw)
 
 
+def _no_drilling_options() -> None:
+    """A drill string's options given to a trace of a rod: refused in one line."""
+    said = explicit(*DRILLING_KEYS)
+    if said:
+        raise UserError(f"--{said[0].replace('_', '-')} is an option of a drill string: give --string S.toml "
+                        f"(and the well as --conduit WELL.toml)")
+
+
 def _trace_string(a) -> None:
     """``trace --string S.toml --conduit WELL.toml --param depth --range A B``: a trip in bit depth
     (:func:`.drilling.run_drilling_trace`); the rod's own trace options do not apply to it."""
@@ -116,7 +122,7 @@ def _trace_string(a) -> None:
     if said:  # a trip marches in depth with the string's own data: these would be ignored
         raise UserError(f"--{said[0].replace('_', '-')} is not an option of a trip (--string): drop it")
     run_drilling_trace(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, a.param, a.prange, a.out,
-                       a.overwrite)
+                       a.overwrite, quiet=a.quiet)
 
 
 def _range_stretch_warning(rod, param, prange) -> None:
@@ -229,9 +235,9 @@ def _resume_trace(path, extend, out, start, from_straight, switch, param, prange
     if kind != "branch":
         raise UserError(f"{path} is a {str(kind).replace('_', ' ')} file, not a trace: it cannot be resumed")
     data = d.branches[0]
-    if data.param == "depth":  # its rod is a placed string, which rodcont.restart does not rebuild
-        raise UserError(f"{path} is a trip in bit depth: --resume does not continue trips; run the trip again "
-                        f"(its command with --overwrite)")
+    if data.param == "depth":  # a trip: its well, string and march are in the file (rodcont.drivers.trip)
+        return _resume_trip(path, data, quiet)
+    _no_drilling_options()
     if explicit("param") and param != data.param:
         raise UserError(f"--resume goes on in the file's parameter ({data.param}): drop --param {param}")
     if kw["direction"] != 1:
@@ -250,6 +256,33 @@ def _resume_trace(path, extend, out, start, from_straight, switch, param, prange
                       data=d)
 
     _traced(run, path, quiet, resumed=True, param=data.param)
+
+
+def _resume_trip(path, data, quiet):
+    """``trace --resume TRIP.h5``: the interrupted trip finished in place (rodcont.drivers.trip.resume_trip), with
+    the file's own well, string, operation, range and options (each option given is refused)."""
+    import json
+
+    from ..branchfile import same_file
+    from ..drivers.trip import resume_trip
+    from .drilling import tripped
+    ctx = click.get_current_context()
+    given = [n for n in ctx.params if n not in ("resume_file", "quiet", "out", "param")
+             and ctx.get_parameter_source(n) not in (click.core.ParameterSource.DEFAULT, None)]
+    if given:
+        raise UserError(f"--resume finishes the trip {path} with its own well, string, operation and range: "
+                        f"drop --{given[0].replace('_', '-').replace('prange', 'range')}")
+
+    def check(inputs):
+        check_out(path, [p for p in inputs if not same_file(p, path)], True)
+
+    def run(callback):
+        return resume_trip(path, callback=callback, check=check)
+    try:  # the progress line's count; a file without the record is refused by resume_trip in its own words
+        points = int(json.loads(data.attrs["trip_run"])["points"])
+    except (KeyError, TypeError, ValueError):
+        points = 0
+    tripped(run, path, points, quiet)
 
 
 def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet, restart=False, param="phi_L"):
