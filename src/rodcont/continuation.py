@@ -601,7 +601,27 @@ class Tracker:
         the chord uses ``q``'s factorisation, which is that of this very system (same border row)
         at a nearby point: a location converges with one factorisation per iterate.
         """
-        s = self.settings
+        y_pred, chord = self._predict(base, ds, kind, near)
+        tol = self.settings.newton_tol
+        # The Newton step whose factorisation gives the tangent is applied to the point: after it
+        # the error is of the order of the square of that step. So the chord stops, and that step is
+        # taken, at NEAR sqrt(tol) (1e-6 for tol = 1e-10); one more correction with the new
+        # factorisation then measures what is left, and the point is accepted only if that is below
+        # tol. Located points (folds, events) need the tangent itself to the tolerance: the tangent
+        # is taken before the last step, so there the step must be below the tolerance.
+        accept = max(tol, NEAR * math.sqrt(tol)) if kind == Kind.REGULAR else tol
+        info = dict(contraction=0.0, distance=0.0, newton=0, predictor=y_pred[:-1])
+        y, iterations = y_pred.copy(), 0
+        if chord is not None:
+            y, iterations, why = self._chord(y, base, ds, chord, accept, info)
+            if why:
+                return None, why
+        return self._newton_corrector(y, y_pred, base, ds, kind, accept, info, iterations, max_iter)
+
+    def _predict(self, base: Point, ds: float, kind, near) -> tuple:
+        """``(y_pred, chord)``: the predicted point (secant-free: along ``base``'s tangent, with the
+        tangent's change over the last step as a second-order term on a regular step, or along a
+        nearby iterate's tangent, :meth:`_correct`'s ``near``) and the factorisation the chord uses."""
         y_pred = np.append(base.x + ds * base.tx, base.p + ds * base.tp)
         chord = base.solver
         prev = self._previous
@@ -617,49 +637,54 @@ class Tracker:
             kp = (base.tp - prev.tp) / base.ds
             y_pred[:-1] += 0.5 * ds * ds * kx
             y_pred[-1] += 0.5 * ds * ds * kp
-        y = y_pred.copy()
-        tol = s.newton_tol
-        # The Newton step whose factorisation gives the tangent is applied to the point: after it
-        # the error is of the order of the square of that step. So the chord stops, and that step is
-        # taken, at NEAR sqrt(tol) (1e-6 for tol = 1e-10); one more correction with the new
-        # factorisation then measures what is left, and the point is accepted only if that is below
-        # tol. Located points (folds, events) need the tangent itself to the tolerance: the tangent
-        # is taken before the last step, so there the step must be below the tolerance.
-        accept = max(tol, NEAR * math.sqrt(tol)) if kind == Kind.REGULAR else tol
-        info = dict(contraction=0.0, distance=0.0, newton=0, predictor=y_pred[:-1])
+        return y_pred, chord
+
+    def _chord(self, y, base: Point, ds: float, chord, accept: float, info: dict) -> tuple:
+        """``(y, iterations, why)``: chord iterations on the augmented system with the factorisation
+        ``chord`` from ``y``, stopped where they no longer contract by 0.9 (or by ``max_contraction``
+        at the first ratio, which ``info["contraction"]`` keeps) or where the predicted error left is
+        below ``accept``; ``why`` is the failure (a residual or step not finite), else empty."""
+        s = self.settings
+        sizes: list[float] = []
         iterations = 0
-        if chord is not None:
-            sizes: list[float] = []
-            for _ in range(s.chord_max_iter):
-                r = self._augmented_residual(y, base, ds)
-                if not np.all(np.isfinite(r)):
-                    return None, "the residual is not finite"
-                dy = chord.solve(-r)
-                iterations += 1
-                size = self._ymax(dy)
-                if not math.isfinite(size):
-                    return None, "the corrector diverged"
-                y_next = y + dy
-                scale = accept * (1 + self._ymax(y_next))
-                if sizes:
-                    rate = size / sizes[-1] if sizes[-1] > 0 else 0.0
-                    if len(sizes) == 1:
-                        # the first ratio: how far the step took the Jacobian from the base's
-                        info["contraction"] = rate
-                        if rate > s.max_contraction:
-                            break  # too far for the chord: Newton from the first correction
-                    if rate > 0.9:
-                        break
-                    y = y_next
-                    sizes.append(size)
-                    if size * rate / max(1 - rate, 1e-3) <= scale:
-                        break
-                else:
-                    y = y_next
-                    sizes.append(size)
-                    if size <= 0.1 * scale:
-                        break
-        # Newton, each factorisation also giving the tangent
+        for _ in range(s.chord_max_iter):
+            r = self._augmented_residual(y, base, ds)
+            if not np.all(np.isfinite(r)):
+                return y, iterations, "the residual is not finite"
+            dy = chord.solve(-r)
+            iterations += 1
+            size = self._ymax(dy)
+            if not math.isfinite(size):
+                return y, iterations, "the corrector diverged"
+            y_next = y + dy
+            scale = accept * (1 + self._ymax(y_next))
+            if not sizes:
+                y = y_next
+                sizes.append(size)
+                if size <= 0.1 * scale:
+                    break
+                continue
+            rate = size / sizes[-1] if sizes[-1] > 0 else 0.0
+            if len(sizes) == 1:
+                # the first ratio: how far the step took the Jacobian from the base's
+                info["contraction"] = rate
+                if rate > s.max_contraction:
+                    break  # too far for the chord: Newton from the first correction
+            if rate > 0.9:
+                break
+            y = y_next
+            sizes.append(size)
+            if size * rate / max(1 - rate, 1e-3) <= scale:
+                break
+        return y, iterations, ""
+
+    def _newton_corrector(self, y, y_pred, base: Point, ds: float, kind, accept: float, info: dict,
+                          iterations: int, max_iter: int | None):
+        """Newton on the augmented system from ``y``, each factorisation also giving the tangent: ``(point,
+        info)`` once a step is below ``accept`` (or Newton is at rounding) and what it leaves below the
+        tolerance, ``(None, why)`` where it diverges, is singular or runs out of iterations."""
+        s = self.settings
+        tol = s.newton_tol
         row = self._border(base.tx, base.tp)
         e = np.zeros(self.n + 1)
         e[-1] = 1.0
@@ -700,23 +725,17 @@ class Tracker:
             # the residual at 0.1, and the point was off by 1e-6 of the span
             if size <= accept * (1 + self._ymax(y)) or (stalled and rounding and size > 0.25 * prev
                                                        and _at_rounding(F, J, Fp, x, p)):
-                t = lu.solve(e)
-                tx, tp = t[:-1], float(t[-1])
-                norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)
-                if not (math.isfinite(norm) and norm > 0):
+                tangent = self._unit_tangent(lu, e)
+                if tangent is None:
                     return None, "the tangent system is singular"
-                tx, tp = tx / norm, tp / norm
+                tx, tp, t = tangent
                 sign, log = lu.det()
                 solver = lu.with_last_row(row, self._border(tx, tp), t)
                 y = y + dy
                 if size > tol * (1 + self._ymax(y)):
-                    # what the step left: one correction with this factorisation (contraction ~ |dy|)
-                    r = self._augmented_residual(y, base, ds)
-                    dy = lu.solve(-r)
+                    y, _, done = self._polish(y, lu, base, ds, J, Fp)
                     iterations += 1
-                    y = y + dy
-                    if not (self._ymax(dy) <= tol * (1 + self._ymax(y))
-                            or _at_rounding(r[:-1], J, Fp, y[:-1] - dy[:-1], float(y[-1] - dy[-1]))):
+                    if not done:
                         prev = size
                         continue
                 self.newton_iterations += iterations
@@ -728,6 +747,28 @@ class Tracker:
             prev = size
         self.newton_iterations += iterations
         return None, "the corrector did not converge"
+
+    def _unit_tangent(self, lu, e) -> tuple | None:
+        """``(tx, tp, t)``: ``t`` the solution of the bordered system for ``e`` (the last unit vector),
+        ``(tx, tp)`` it at unit weighted norm; None where that norm is not finite or zero."""
+        t = lu.solve(e)
+        tx, tp = t[:-1], float(t[-1])
+        norm = math.sqrt(float((self.wx * tx) @ tx) + self.wp * tp * tp)
+        if not (math.isfinite(norm) and norm > 0):
+            return None
+        return tx / norm, tp / norm, t
+
+    def _polish(self, y, lu, base: Point, ds: float, J, Fp) -> tuple:
+        """``(y, step, done)``: what the accepted Newton step left, one correction with its factorisation
+        (contraction ~ |dy|); ``done`` where that correction is below the tolerance (or at rounding)."""
+        tol = self.settings.newton_tol
+        r = self._augmented_residual(y, base, ds)
+        dy = lu.solve(-r)
+        y = y + dy
+        step = self._ymax(dy)
+        done = step <= tol * (1 + self._ymax(y)) or _at_rounding(r[:-1], J, Fp, y[:-1] - dy[:-1],
+                                                                 float(y[-1] - dy[-1]))
+        return y, step, done
 
     # ---- start -------------------------------------------------------------------
     def start(self) -> Point:
