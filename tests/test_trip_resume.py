@@ -138,6 +138,7 @@ def test_the_trip_command_interrupted_says_how_to_go_on_and_resume_finishes_it(t
 @pytest.mark.parametrize("extra, message", [
     (("--operation", "rotate"), "drop --operation"),
     (("--range", "100", "300"), "drop --range"),
+    (("--points", "5"), "drop --points"),
 ])
 def test_resuming_a_trip_refuses_what_would_change_it(tmp_path, extra, message):
     out = str(tmp_path / "t.h5")
@@ -148,3 +149,17 @@ def test_resuming_a_trip_refuses_what_would_change_it(tmp_path, extra, message):
     r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
     assert r.returncode == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert os.stat(out).st_mtime_ns == before
+
+
+def test_a_trips_depths_are_points_from_a_to_b_and_only_a_trip_takes_points(tmp_path):
+    well, string = _files(tmp_path)
+    cmd, env = _rodcont("trace", "--conduit", well, "--string", string, "--param", "depth", "--range", "100", "200",
+                        "--points", "3", "--operation", "pick-up", "--out", "t.h5", "--quiet")
+    r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert r.returncode == 0 and r.stderr.splitlines() == [], r.stderr
+    assert load_branch(str(tmp_path / "t.h5")).table["depth"] == [200.0, 150.0, 100.0]
+    assert "#   points = 3" in r.stdout.splitlines()   # the problem as run says it
+    cmd, env = _rodcont("trace", "--gamma", "1", "--points", "3", "--out", "x.h5")
+    r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert r.returncode == 2 and "--points is the number of depths of a trip" in r.stderr, r.stderr
+    assert not (tmp_path / "x.h5").exists()

@@ -94,7 +94,8 @@ def config_toml(params: dict) -> str:
     """The effective problem as a TOML document (what ``--config`` reads back)."""
     rows = {section: [] for section in CONFIG_SECTIONS} | {"trace": []}
     for name, v in params.items():
-        if name in _CONFIG_SKIP or v is None or v == ():
+        trip_points = name == "points" and isinstance(v, int)  # a trip's count, not shape's --point list
+        if (name in _CONFIG_SKIP and not trip_points) or v is None or v == ():
             continue
         section = next((s for s, keys in CONFIG_SECTIONS.items() if name in keys), "trace")
         if isinstance(v, tuple):
@@ -148,7 +149,7 @@ def echo_config(ctx) -> None:
 
 
 # what a trip (trace --string ... --param depth) reads besides the drill-string options
-TRIP_KEYS = ("conduit", "param", "prange")
+TRIP_KEYS = ("conduit", "param", "prange", "points")
 
 
 def _drop_drilling_or_rod(params: dict) -> None:

@@ -59,6 +59,8 @@ from .trace_options import OPTION_SOURCES, given_options, rod_changes, trace_kwa
                    "depth: a trip of the drill string --string in the well --conduit)")
 @click.option("--range", "prange", type=float, nargs=2, default=None, callback=check_number("--range"),
               help="A B: the interval of --param (when it is not phi_L)")
+@click.option("--points", type=click.IntRange(2, 100_000), default=None,
+              help="a trip's depths from A to B (--param depth; default 11)")
 @click.option("--direction", type=click.Choice(["up", "down"]), default="up", show_default=True,
               help="which way the parameter goes first")
 @click.option("--conduit", type=click.Path(dir_okay=False), default=None,
@@ -82,6 +84,8 @@ def trace(**given):
         return _trace_string(a)
     if a.resume_file is None:  # a trip's file refuses them as its own (_resume_trip), a trace's as here
         _no_drilling_options()
+    if a.points is not None and a.resume_file is None:
+        raise UserError("--points is the number of depths of a trip (--param depth with --string)")
     kw = trace_kwargs(a)
     kw["direction"] = 1 if a.direction == "up" else -1
     if a.resume_file is not None:
@@ -122,7 +126,7 @@ def _trace_string(a) -> None:
     if said:  # a trip marches in depth with the string's own data: these would be ignored
         raise UserError(f"--{said[0].replace('_', '-')} is not an option of a trip (--string): drop it")
     run_drilling_trace(a.conduit, {key: getattr(a, key) for key in DRILLING_KEYS}, a.param, a.prange, a.out,
-                       a.overwrite, quiet=a.quiet)
+                       a.overwrite, points=a.points or 11, quiet=a.quiet)
 
 
 def _range_stretch_warning(rod, param, prange) -> None:
@@ -238,6 +242,8 @@ def _resume_trace(path, extend, out, start, from_straight, switch, param, prange
     if data.param == "depth":  # a trip: its well, string and march are in the file (rodcont.drivers.trip)
         return _resume_trip(path, data, quiet)
     _no_drilling_options()
+    if explicit("points"):
+        raise UserError("--points is the number of depths of a trip (--param depth with --string)")
     if explicit("param") and param != data.param:
         raise UserError(f"--resume goes on in the file's parameter ({data.param}): drop --param {param}")
     if kw["direction"] != 1:
