@@ -353,22 +353,8 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     if l0 is not None:
         from .trace import trace_ends
         ends = trace_ends(l0=l0)
-    N = check_number("N", N, integer=True)
-    k = check_number("k", k, integer=True)
-    deflate_at = check_numbers("deflate_at", deflate_at)
-    check_callable("callback", callback, "a function of the point")
-    check_callable("progress", progress, "a function of a line of text")
-    check_mapping("meta", meta)
-    given = resumed
-    resumed = list(resumed) if hasattr(resumed, "__iter__") and not isinstance(resumed, (str, bytes)) else [None]
-    if not all(isinstance(db, DiagramBranch) for db in resumed):
-        raise TypeError(f"resumed must be a sequence of DiagramBranch (the complete branches of the interrupted "
-                        f"run), got {given!r}")
-    if deflate_at and ends is not None:
-        raise ValueError("deflation (--deflate) works with the tension imposed, not under length control (--l0)")
-    store_every = check_number("store_every", store_every, integer=True)
-    if store_every < 1:
-        raise ValueError(f"store_every must be >= 1, got {store_every}")
+    N, k, deflate_at, resumed, store_every = _checked(N, k, deflate_at, callback, progress, meta, resumed, ends,
+                                                      store_every)
     t_start = time.perf_counter()
     beyond = critical_twists(rod, T, phi_max=_beyond(opts.phi_max), phi_min=0.0, k=k, l0=l0)
     crit = [c for c in beyond if c <= opts.phi_max]
@@ -379,14 +365,7 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
     dg.attrs = file_meta(rod, T, N, k, "phi_L", opts, RodSystem(rod, T=T, N=N, k=k, ends=ends),
                          dict(kind="diagram", critical_twists=np.asarray(crit), seeds=np.asarray(seeds),
                               deflate_at=np.asarray(deflate_at), **(meta or {})))
-    writer = None
-    if out is not None:
-        from ..branchfile import BranchWriter, check_output
-        out = check_output(out, overwrite=overwrite)
-        # a resumed file is replaced only once it holds its complete branches again
-        writer = BranchWriter(out, dg.attrs, store_every=store_every,
-                              min_points=sum(len(db.branch) for db in dg.resumed) or 1)
-        _mesh_group(writer, RodSystem(rod, T=T, N=N, k=k))
+    writer = None if out is None else _open_diagram(out, overwrite, dg, store_every, RodSystem(rod, T=T, N=N, k=k))
     note = progress or (lambda msg: None)
     try:
         if dg.resumed or not _parallel(jobs, executor, len(seeds) + 1):
@@ -409,6 +388,38 @@ def diagram(gamma: float | None = None, rod: RodParameters | None = None, N: int
             writer.close(f"{len(dg.branches)} branches" if dg.status == Status.COMPLETE else
                          f"interrupted ({len(dg.branches)} branches complete)", dg.status)
     return dg
+
+
+def _checked(N, k, deflate_at, callback, progress, meta, resumed, ends, store_every) -> tuple:
+    """:func:`diagram`'s arguments checked (one line each): ``(N, k, deflate_at, resumed, store_every)``."""
+    N = check_number("N", N, integer=True)
+    k = check_number("k", k, integer=True)
+    deflate_at = check_numbers("deflate_at", deflate_at)
+    check_callable("callback", callback, "a function of the point")
+    check_callable("progress", progress, "a function of a line of text")
+    check_mapping("meta", meta)
+    given = resumed
+    resumed = list(resumed) if hasattr(resumed, "__iter__") and not isinstance(resumed, (str, bytes)) else [None]
+    if not all(isinstance(db, DiagramBranch) for db in resumed):
+        raise TypeError(f"resumed must be a sequence of DiagramBranch (the complete branches of the interrupted "
+                        f"run), got {given!r}")
+    if deflate_at and ends is not None:
+        raise ValueError("deflation (--deflate) works with the tension imposed, not under length control (--l0)")
+    store_every = check_number("store_every", store_every, integer=True)
+    if store_every < 1:
+        raise ValueError(f"store_every must be >= 1, got {store_every}")
+    return N, k, deflate_at, resumed, store_every
+
+
+def _open_diagram(out: str, overwrite: bool, dg: Diagram, store_every: int, system: RodSystem):
+    """The diagram's file writer (its mesh group that of ``system``); a resumed file is replaced only once it holds
+    its complete branches again."""
+    from ..branchfile import BranchWriter, check_output
+    out = check_output(out, overwrite=overwrite)
+    writer = BranchWriter(out, dg.attrs, store_every=store_every,
+                          min_points=sum(len(db.branch) for db in dg.resumed) or 1)
+    _mesh_group(writer, system)
+    return writer
 
 
 def _mark_interrupted(writer, dg: Diagram) -> None:
