@@ -168,6 +168,10 @@ def test_the_command_interrupted_keeps_its_file_and_resume_finishes_it(tmp_path,
     assert f"interrupted: b.h5 holds {n} of the {held.complete.size} equilibria; finish it with rodcont " \
            f"broomstick --resume b.h5" in err.splitlines()
     assert not (tmp_path / "b.png").exists()   # the plot is drawn once the broomstick is whole
+    cmd, env = _command(*args)   # the same command again: refused as existing, and told how to finish it
+    r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert r.returncode == 2 and f"b.h5 is an interrupted broomstick, {n} of {held.complete.size} equilibria: " \
+        f"finish it with rodcont broomstick --resume b.h5" in r.stderr, r.stderr
     cmd, env = _command("--resume", "b.h5", "-o", "b.png", "--quiet")
     r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

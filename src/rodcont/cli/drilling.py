@@ -477,9 +477,23 @@ def _check_broom_outputs(png, h5, inputs, overwrite) -> None:
         try:
             check_output(path, inputs, overwrite=overwrite, what=what)
         except (BranchFileError, ValueError, OSError) as exc:
-            raise click.UsageError(str(exc)) from None
+            raise click.UsageError(str(exc) + (_unfinished_hint(path) if what == "--out" else "")) from None
     if h5 is not None and same_file(png, h5):  # links too
         raise click.UsageError(f"-o and --out name the same file {h5}: give two names")
+
+
+def _unfinished_hint(path: str) -> str:
+    """`` (an interrupted broomstick: ...)`` where ``path`` is one, so that an --out refused as existing says how
+    to finish it; empty otherwise."""
+    from ..drivers.broomstick import read_broomstick
+    try:
+        b = read_broomstick(path) if os.path.isfile(path) else None
+    except ValueError:
+        return ""
+    if b is None or b.complete.all():
+        return ""
+    return (f" ({path} is an interrupted broomstick, {int(b.complete.sum())} of {b.complete.size} equilibria: "
+            f"finish it with rodcont broomstick --resume {path})")
 
 
 def _write_plot(br, png) -> None:
