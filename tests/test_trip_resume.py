@@ -132,6 +132,10 @@ def test_the_trip_command_interrupted_says_how_to_go_on_and_resume_finishes_it(t
         assert back.table[name] == ref.table[name], name
     lines = [ln for ln in r.stdout.splitlines() if not ln.startswith("#")]   # after the problem as run
     assert lines[:2] == ["points 11", "status bound"]
+    # the problem as run names none of a rod trace's defaults (it said param = "phi_L" of a trip in depth)
+    assert [ln for ln in r.stdout.splitlines() if ln.startswith("#")] == [
+        "# rodcont trace: the problem as run",
+        "#   (the problem and every option not given here are those of --resume t.h5)"]
     assert f"hook_load {ref.table['hook_load'][-1]!r}" in lines
 
 

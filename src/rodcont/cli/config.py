@@ -136,14 +136,20 @@ def echo_config(ctx) -> None:
             for name in sources:
                 if not explicit(name):
                     params.pop(name, None)
+        if params.get("resume_file"):  # it goes on in the file's parameter, direction and branch (a trip's too)
+            for name in ("param", "direction", "switch"):
+                if not explicit(name):
+                    params.pop(name, None)
     text = config_toml(params)
     ctx.meta["rodcont.config"] = text
     src = ctx.meta.get("rodcont.config_file")
     click.echo(f"# rodcont {ctx.info_name}" + (f" (--config {src})" if src else "") + ": the problem as run")
     if start is not None:
-        how = "--start" if params.get("start") else "--resume"
-        click.echo(f"#   (the rod, its loads, reference curve, conduit, mesh and the trace options not given "
-                   f"are those of {how} {start})")
+        if params.get("start"):
+            click.echo(f"#   (the rod, its loads, reference curve, conduit, mesh and the trace options not given "
+                       f"are those of --start {start})")
+        else:  # a trace's or a trip's (its well, string, operation and range): the file says which
+            click.echo(f"#   (the problem and every option not given here are those of --resume {start})")
     for line in text.splitlines():
         click.echo(f"#   {line}")
 
