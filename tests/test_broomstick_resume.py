@@ -210,3 +210,87 @@ def test_resume_refuses_what_would_change_the_broomstick(tmp_path, whole, extra,
     r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
     assert r.returncode == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert sorted(os.listdir(tmp_path)) == before
+
+
+# ------------------------------------------------------------------ what a resume may not trust or touch
+
+def _interrupted(path):
+    """A broomstick file interrupted after the first of its two equilibria (pick-up, mu 0.2, 100 and 150 m)."""
+    with ThreadPoolExecutor(max_workers=1) as ex, pytest.raises(KeyboardInterrupt):
+        broomstick(WELL, STRING, DEPTHS[:2], MUS[:1], OPS[:1], executor=ex, callback=StopAfter(1), out=path)
+    return path
+
+
+def _edit_record(f, change):
+    rec = json.loads(f.attrs["drilling"])
+    change(rec)
+    f.attrs["drilling"] = json.dumps(rec)
+
+
+def _replace(f, name, value):
+    del f[name]
+    f[name] = value
+
+
+DAMAGES = {   # each as the adversary of 2026-12-04 made it; each had been exit 1, or a file 'finished' unsolved
+    "a section's EI as text": lambda f: _edit_record(f, lambda r: r["string"]["sections"][0].update(EI="1e4")),
+    "no survey stations": lambda f: _edit_record(f, lambda r: r["well"].update(stations=[])),
+    "an unknown option": lambda f: _edit_record(f, lambda r: r.update(options={"bogus": 1})),
+    "a negative N_max": lambda f: _edit_record(f, lambda r: r.update(options={"N_max": -3})),
+    "a hook load of another shape": lambda f: _replace(f, "hook_load", np.zeros((3, 1, 1))),
+    "an operation it does not know": lambda f: _replace(f, "operations", np.array(["trip"], dtype=h5py.string_dtype())),
+    "a negative friction factor": lambda f: _replace(f, "friction", np.array([-0.4])),
+    "cells complete without an equilibrium": lambda f: _replace(f, "complete", np.ones((2, 1, 1), bool)),
+    "its complete cells deleted": lambda f: f.__delitem__("complete"),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGES))
+def test_a_damaged_broomstick_file_is_refused_before_it_is_touched(tmp_path, damage):
+    """A file edited by hand (broomstick files carry no checksum) is refused in one line (a ValueError, which the
+    command says as a usage error) before any job runs or the file is written again."""
+    path = _interrupted(str(tmp_path / "b.h5"))
+    with h5py.File(path, "r+") as f:
+        DAMAGES[damage](f)
+    before = open(path, "rb").read()
+    with Counting() as ex, pytest.raises(ValueError, match=r"damaged broomstick|friction factor|operation") as exc:
+        resume_broomstick(path, executor=ex)
+    assert ex.submitted == [] and "\n" not in str(exc.value)
+    assert open(path, "rb").read() == before
+
+
+def test_a_second_writer_of_a_broomstick_is_refused(tmp_path):
+    """One writer per file, as for traces: the lock beside it (rodcont.branchfile.OutputLock) is held while the
+    broomstick runs, and a second run onto the same file is refused before any job."""
+    from rodcont.branchfile import OutputLock
+    path = _interrupted(str(tmp_path / "b.h5"))
+    before = open(path, "rb").read()
+    held = OutputLock(path)
+    try:
+        with Counting() as ex, pytest.raises(ValueError, match="is being written by another rodcont process"):
+            resume_broomstick(path, executor=ex)
+        assert ex.submitted == [] and open(path, "rb").read() == before
+    finally:
+        held.release()
+    with Counting() as ex:
+        resume_broomstick(path, executor=ex)   # and once it is free, the resume goes on
+    assert read_broomstick(path).complete.all() and not os.path.exists(held.lock_path)
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("-o", "w.csv", "--overwrite"), "-o w.csv is the input file"),   # the well's survey, named by its record
+    (("-o", "s.toml", "--overwrite"), "-o s.toml is the input file"),
+    (("--mud-density", "0"), "drop --mud-density"),                    # 0 is given too
+    (("--friction", "0.2", "0.4"), "drop --friction"),                 # 0.4 is parsed as WELL.toml
+])
+def test_a_resume_of_the_commands_file_refuses_its_inputs_as_outputs(tmp_path, extra, message):
+    well, string = _files(tmp_path)
+    path = str(tmp_path / "b.h5")
+    with ThreadPoolExecutor(max_workers=1) as ex:
+        broomstick(Well.from_toml(well), DrillString.from_toml(string), DEPTHS[:1], MUS[:1], OPS[:1], executor=ex,
+                   out=path, meta=dict(well=well, string=string))
+    before = {name: (tmp_path / name).read_bytes() for name in sorted(os.listdir(tmp_path))}
+    cmd, env = _command("--resume", "b.h5", *extra)
+    r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert r.returncode == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert {name: (tmp_path / name).read_bytes() for name in sorted(os.listdir(tmp_path))} == before

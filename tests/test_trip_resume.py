@@ -92,6 +92,28 @@ def test_a_trip_it_cannot_resume_is_one_line(tmp_path, monkeypatch):
         resume_trip(out)
 
 
+def test_a_trip_file_rewritten_by_hand_is_not_resumed(tmp_path):
+    """A trip whose file lost rodcont's checksum (h5py keeps none) is refused before it is touched: its record
+    (well, string, range) would be trusted, a failure had rewritten it one point shorter, and a success had
+    stamped the edited record with a valid checksum."""
+    import warnings
+
+    import h5py
+    first, out = str(tmp_path / "first.h5"), str(tmp_path / "t.h5")
+    with pytest.raises(KeyboardInterrupt):
+        trip(WELL, STRING, (100.0, 200.0), "pick-up", points=3, out=first, callback=StopAfter(1))
+    with h5py.File(first, "r") as src, h5py.File(out, "w") as f:   # copied by h5py: no checksum
+        for name in src:
+            src.copy(name, f)
+        f.attrs.update(src.attrs)
+        f.attrs["trip_run"] = json.dumps(dict(json.loads(src.attrs["trip_run"]), range=[100.0, 900.0]))
+    before = open(out, "rb").read()
+    with warnings.catch_warnings(), pytest.raises(ValueError, match="has lost rodcont's checksum"):
+        warnings.simplefilter("ignore")
+        resume_trip(out)
+    assert open(out, "rb").read() == before
+
+
 # ------------------------------------------------------------------ the command line
 
 def _files(tmp_path):
@@ -122,9 +144,11 @@ def test_the_trip_command_interrupted_says_how_to_go_on_and_resume_finishes_it(t
     assert p.returncode == 143 and str(held.status) == "interrupted", (p.returncode, err)
     assert f"interrupted: t.h5 holds the {len(held)} completed depth(s) of the trip; go on with rodcont trace " \
            f"--resume t.h5" in err.splitlines()
-    cmd, env = _rodcont("trace", "--resume", "t.h5", "--quiet")
+    cmd, env = _rodcont("trace", "--resume", "t.h5", "--param", "depth")   # its own parameter may be said
     r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+    depths = [ln for ln in r.stderr.splitlines() if ln.startswith("depth ")]   # the first is printed at once
+    assert depths[0].startswith(f"depth {len(held) + 1} of 11 "), depths   # counted on from the file's depths
     back = load_branch(str(tmp_path / "t.h5"))
     assert len(back) == 11 and str(back.status) == "bound"
     ref = trip(WELL, STRING, (100.0, 200.0), "pick-up", points=11)
@@ -135,7 +159,8 @@ def test_the_trip_command_interrupted_says_how_to_go_on_and_resume_finishes_it(t
     # the problem as run names none of a rod trace's defaults (it said param = "phi_L" of a trip in depth)
     assert [ln for ln in r.stdout.splitlines() if ln.startswith("#")] == [
         "# rodcont trace: the problem as run",
-        "#   (the problem and every option not given here are those of --resume t.h5)"]
+        "#   (the problem and every option not given here are those of --resume t.h5)",
+        "#   [trace]", '#   param = "depth"']
     assert f"hook_load {ref.table['hook_load'][-1]!r}" in lines
 
 
@@ -143,6 +168,7 @@ def test_the_trip_command_interrupted_says_how_to_go_on_and_resume_finishes_it(t
     (("--operation", "rotate"), "drop --operation"),
     (("--range", "100", "300"), "drop --range"),
     (("--points", "5"), "drop --points"),
+    (("--param", "phi_L"), "drop --param"),   # had been taken silently
 ])
 def test_resuming_a_trip_refuses_what_would_change_it(tmp_path, extra, message):
     out = str(tmp_path / "t.h5")

@@ -750,6 +750,31 @@ JOINT_LENGTH = 9.14
 MAX_JOINTS = 100_000
 
 
+#: the options of torque_and_drag a broomstick or a trip passes on (and keeps in its file): counts, positive
+#: numbers, and the motion and bit loads (finite numbers, checked again by the solve)
+COUNT_OPTIONS, NUMBER_OPTIONS = ("N", "k", "N_max"), ("max_error", "max_side_force_error", "tol", "force_scale")
+MOTION_OPTIONS = ("wob", "bit_torque", "trip_speed", "rpm")
+
+
+def check_solve_options(options: dict) -> None:
+    """Each option one of :data:`COUNT_OPTIONS` (None or a positive integer), :data:`NUMBER_OPTIONS` (None or a
+    positive finite number) or :data:`MOTION_OPTIONS` (None or a finite number), else a :class:`DrillingError`
+    before any solve (a damaged broomstick file's options had made every cell a failure and the file complete:
+    test_a_damaged_broomstick_file_is_refused_before_it_is_touched)."""
+    known = COUNT_OPTIONS + NUMBER_OPTIONS + MOTION_OPTIONS
+    for key, v in options.items():
+        if key not in known:
+            raise DrillingError(f"unknown option {key!r} of the solves (known: {', '.join(known)})")
+        number = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+        if v is None or (key in MOTION_OPTIONS and number and math.isfinite(v)):
+            continue
+        if key in COUNT_OPTIONS and not (isinstance(v, (int, np.integer)) and number and v >= 1):
+            raise DrillingError(f"the option {key} must be a positive integer, got {v!r}")
+        if key not in COUNT_OPTIONS and not (number and math.isfinite(v) and (key in MOTION_OPTIONS or v > 0)):
+            raise DrillingError(f"the option {key} must be a {'finite' if key in MOTION_OPTIONS else 'positive'} "
+                                f"number, got {v!r}")
+
+
 def check_joints(depth: float, joint_length: float) -> None:
     """A :class:`DrillingError` (one line) unless ``joint_length`` is a positive number giving at most
     :data:`MAX_JOINTS` joints over ``depth``."""

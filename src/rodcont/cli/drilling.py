@@ -241,9 +241,10 @@ def run_drilling_trace(conduit: str | None, values: dict, param: str, p_range, o
     return tripped(run, out, points, quiet, echo)
 
 
-def tripped(run, out, points: int, quiet: bool, echo=click.echo):
+def tripped(run, out, points: int, quiet: bool, echo=click.echo, done: int = 0):
     """``run(callback)``, a trip, with a progress line on stderr a few seconds apart and Ctrl-C or SIGTERM taken
-    between two depths (what ``out`` holds is said, exit 130 / 143); then its ``name value`` lines. Returns the
+    between two depths (what ``out`` holds is said, exit 130 / 143); then its ``name value`` lines. ``done``: the
+    depths a resumed trip's file holds (the progress counts on from them). Returns the
     :class:`rodcont.branch.Branch`."""
     from ..drilling import DrillingError
     from ..drivers.solve import ConvergenceError
@@ -251,7 +252,7 @@ def tripped(run, out, points: int, quiet: bool, echo=click.echo):
     from .progress import Interrupts
     before = file_identity(out) if out is not None else None
     with Interrupts() as intr:
-        progress = _TripProgress(quiet, intr, points)
+        progress = _TripProgress(quiet, intr, points, done)
         try:
             br = run(progress)
         except KeyboardInterrupt:
@@ -310,7 +311,7 @@ def broomstick_command(well, more_friction, string, friction, depth, points, mud
     for k, op in enumerate(br.operations):
         for j, mu in enumerate(br.mus):
             click.echo(f"hook_load {op} {mu:g} {float(br.hook_load[i, k, j])!r}")
-    for j, mu in enumerate(br.mus):
+    for j, mu in enumerate(br.mus if "rotate" in br.operations else ()):
         click.echo(f"surface_torque rotate {mu:g} {float(br.surface_torque[i, br.operations.index('rotate'), j])!r}")
     click.echo(f"plot {png}")
     if h5 is not None:
@@ -350,10 +351,11 @@ def _resumed_broom(path, well, more_friction, string, friction, depth, mud_densi
     """``(out, run)`` that finishes the broomstick file ``path`` in place: its own well, string, friction factors
     and depths (each given again is refused), the plot checked as a new one's is."""
     from ..branchfile import same_file
-    from ..drivers.broomstick import read_broomstick, resume_broomstick
+    from ..drivers.broomstick import broomstick_inputs, read_broomstick, resume_broomstick
     from .common import explicit
-    given = [name for name, v in (("WELL.toml", well), ("--string", string), ("--friction", friction or more_friction),
-                                  ("--depth", depth), ("--mud-density", mud_density)) if v]
+    given = [name for name, v in (("--friction", friction), ("WELL.toml", well), ("--string", string),
+                                  ("--friction", more_friction), ("--depth", depth), ("--mud-density", mud_density))
+             if v not in (None, ())]  # --mud-density 0 is given too
     given += ["--points"] if explicit("points") else []
     if given:
         raise click.UsageError(f"--resume finishes {path} with its own well, string, friction factors and depths: "
@@ -366,8 +368,8 @@ def _resumed_broom(path, well, more_friction, string, friction, depth, mud_densi
         b0 = read_broomstick(path)
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
-    inputs = [p for p in (b0.attrs.get("well"), b0.attrs.get("string")) if isinstance(p, str) and os.path.isfile(p)]
-    _check_broom_outputs(png, None, tuple(inputs) + (path,), overwrite)  # -o onto the file: 'is the input file'
+    # -o onto the file, or onto the well's survey: 'is the input file'
+    _check_broom_outputs(png, None, broomstick_inputs(b0) + (path,), overwrite)
 
     def run(callback):
         return resume_broomstick(path, jobs=jobs, callback=callback)
@@ -441,18 +443,23 @@ def _say_interrupted(out, before) -> None:
         click.echo(f"interrupted before the first depth: {out} is as it was", err=True)
         return
     from ..branchfile import load_branch
-    click.echo(f"interrupted: {out} holds the {len(load_branch(out))} completed depth(s) of the trip; go on with "
-               f"rodcont trace --resume {out}", err=True)
+    click.echo(f"interrupted: {out} holds the {trip_depths_done(load_branch(out))} completed depth(s) of the trip; "
+               f"go on with rodcont trace --resume {out}", err=True)
+
+
+def trip_depths_done(branch) -> int:
+    """The depths of the march a trip's branch holds (its rows but the events found between them)."""
+    return sum(not str(kind).startswith("event:") for kind in branch.table["kind"])
 
 
 class _TripProgress:
     """A trip's callback: ``depth K of N  D m  hook_load H kN  T s`` on stderr a few seconds apart (every depth on
     a terminal), an event's line as it is found, and an interrupt taken after each recorded point."""
 
-    def __init__(self, quiet: bool, interrupts, points: int):
+    def __init__(self, quiet: bool, interrupts, points: int, done: int = 0):
         import time
         self.quiet, self.interrupts, self.points, self.tty = quiet, interrupts, points, sys.stderr.isatty()
-        self.clock, self.t0, self.last, self.n = time.perf_counter, time.perf_counter(), 0.0, 0
+        self.clock, self.t0, self.last, self.n = time.perf_counter, time.perf_counter(), 0.0, done
 
     def __call__(self, r, row) -> None:
         kind = str(row["kind"])

@@ -80,7 +80,7 @@ def trace(**given):
     given override them); --resume FILE.h5 continues an interrupted trace in place.
     """
     a = SimpleNamespace(**given)
-    if a.string is not None or a.param == "depth":
+    if a.string is not None or (a.param == "depth" and a.resume_file is None):  # a trip's resume: its file says
         return _trace_string(a)
     if a.resume_file is None:  # a trip's file refuses them as its own (_resume_trip), a trace's as here
         _no_drilling_options()
@@ -271,10 +271,11 @@ def _resume_trip(path, data, quiet):
 
     from ..branchfile import same_file
     from ..drivers.trip import resume_trip
-    from .drilling import tripped
+    from .drilling import trip_depths_done, tripped
     ctx = click.get_current_context()
-    given = [n for n in ctx.params if n not in ("resume_file", "quiet", "out", "param")
-             and ctx.get_parameter_source(n) not in (click.core.ParameterSource.DEFAULT, None)]
+    given = [n for n in ctx.params if n not in ("resume_file", "quiet", "out")
+             and ctx.get_parameter_source(n) not in (click.core.ParameterSource.DEFAULT, None)
+             and not (n == "param" and ctx.params[n] == "depth")]  # its own parameter may be said
     if given:
         raise UserError(f"--resume finishes the trip {path} with its own well, string, operation and range: "
                         f"drop --{given[0].replace('_', '-').replace('prange', 'range')}")
@@ -288,7 +289,7 @@ def _resume_trip(path, data, quiet):
         points = int(json.loads(data.attrs["trip_run"])["points"])
     except (KeyError, TypeError, ValueError):
         points = 0
-    tripped(run, path, points, quiet)
+    tripped(run, path, points, quiet, done=trip_depths_done(data))
 
 
 def _run_trace(run_trace, gamma, rod, N, k, T, kw, extra, out, overwrite, quiet, restart=False, param="phi_L"):

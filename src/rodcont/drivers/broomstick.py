@@ -117,19 +117,45 @@ def broomstick(well, string, depths, mus, operations=OPERATIONS, *, executor: Ex
     factors whose ``complete`` cells are kept (copied), not solved again. ``out``: the broomstick's file
     (:func:`write_broomstick`, ``meta`` and the record :func:`resume_broomstick` rebuilds the run from as its
     attributes), published again after each equilibrium: an interrupted run keeps every one it finished."""
-    from .sweep import _stop_workers, _worker_init
+    from ..drilling import check_solve_options
     depths = np.asarray(depths, float)
     mus = [float(mu) for mu in mus]
     _check_cases(well, depths, mus, operations, jobs)
+    check_solve_options(options)
     b = Broomstick.empty(depths, operations, mus)
     if start is not None:
         _carry(b, start)
-    if out is not None:
-        callback = _Checkpoint(out, {**(meta or {}), "drilling": run_record(well, string, options)}, callback)
-    cases = [(op, mu) for op in operations for mu in mus]
-    tasks = [t for t in broom_tasks(depths, cases) if not b.complete[b.cell(t[0], t[1], t[2])]]
+    lock = _locked(out)
+    try:
+        if out is not None:
+            callback = _Checkpoint(out, {**(meta or {}), "drilling": run_record(well, string, options)}, callback)
+        return _solve_cells(b, well, string, options, executor, jobs, callback)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _locked(out: str | None):
+    """The one-writer lock of the broomstick's file (:class:`rodcont.branchfile.OutputLock`), None without one;
+    a second writer is refused (``ValueError``, one line: test_a_second_writer_of_a_broomstick_is_refused)."""
+    from ..branchfile import BranchFileError, OutputLock
+    if out is None:
+        return None
+    try:
+        return OutputLock(out)
+    except BranchFileError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _solve_cells(b: Broomstick, well, string, options, executor, jobs, callback) -> Broomstick:
+    """The cells of ``b`` not ``complete`` solved on ``executor`` (default a process pool of ``jobs``), each filled
+    in and passed to ``callback`` as it comes; the jobs still running stopped on an interrupt or an error."""
+    from .sweep import _stop_workers, _worker_init
+    cases = [(op, mu) for op in b.operations for mu in b.mus]
+    tasks = [t for t in broom_tasks(b.depths, cases) if not b.complete[b.cell(t[0], t[1], t[2])]]
     if not tasks:
         return b
+    depths = b.depths
     own = executor is None
     if own:
         jobs = jobs or os.cpu_count() or 1
@@ -177,7 +203,7 @@ def resume_broomstick(path: str, *, executor: Executor | None = None, jobs: int 
     """The broomstick of the file ``path`` (an interrupted ``rodcont broomstick --out``) finished in place: its
     well, string and options from its record (:func:`run_record`), its complete cells kept, the others solved
     (:func:`broomstick` with ``start``); a ``ValueError`` (one line) for a file it cannot finish."""
-    from ..drilling import RECORD_VERSION, DrillingError, well_and_string_back
+    from ..drilling import RECORD_VERSION, DrillingError, check_solve_options, place_string, well_and_string_back
     b0 = read_broomstick(path)
     text = b0.attrs.get("drilling")
     if not isinstance(text, str):
@@ -186,28 +212,71 @@ def resume_broomstick(path: str, *, executor: Executor | None = None, jobs: int 
     try:
         rec = json.loads(text)
         version = int(rec.get("version", 0))
+        if version > RECORD_VERSION:
+            raise ValueError(f"{path}: its record is version {version}, newer than this rodcont's "
+                             f"({RECORD_VERSION}): update rodcont")
         well, string = well_and_string_back(rec)
         options = dict(rec.get("options", {}))
-    except (ValueError, KeyError, TypeError, AttributeError, DrillingError) as exc:
+        check_solve_options(options)
+        _check_cases(well, b0.depths, list(b0.mus), b0.operations, jobs)
+        place_string(well, string, float(np.max(b0.depths)))  # the record's numbers used once, here
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError, ZeroDivisionError, DrillingError) as exc:
+        if str(exc).startswith(f"{path}: its record is version"):
+            raise
         raise ValueError(f"{path}: a damaged broomstick record ({type(exc).__name__}: {exc})") from None
-    if version > RECORD_VERSION:
-        raise ValueError(f"{path}: its record is version {version}, newer than this rodcont's ({RECORD_VERSION}): "
-                         f"update rodcont")
+    _check_cells(b0, path)
     meta = {key: v for key, v in b0.attrs.items() if key not in ("kind", "status", "drilling")}
     return broomstick(well, string, b0.depths, b0.mus, b0.operations, executor=executor, jobs=jobs,
                       callback=callback, start=b0, out=path, meta=meta, **options)
 
 
 def _check_cases(well, depths, mus, operations, jobs) -> None:
-    """Each friction factor and operation once, ``jobs`` a count, each depth inside the well (one line each)."""
+    """Each friction factor (a number >= 0) and operation (a named one) once, ``jobs`` a count, each depth inside
+    the well (one line each)."""
+    from ..loads import OPERATIONS as NAMED
     for what, values in (("friction factor", mus), ("operation", list(operations))):
         twice = [v for v in values if values.count(v) > 1]
         if twice:  # one curve each: a second copy's cells were never filled (uninitialised numbers printed)
             raise ValueError(f"the {what} {twice[0]} is given twice: give each once")
+    bad = [mu for mu in mus if not (np.isfinite(mu) and mu >= 0)]
+    if bad:
+        raise ValueError(f"a friction factor must be a number >= 0, got {bad[0]!r}")
+    unknown = [op for op in operations if op not in NAMED]
+    if unknown:
+        raise ValueError(f"unknown operation {unknown[0]!r} (known: {', '.join(NAMED)})")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 0):
         raise ValueError(f"jobs must be a non-negative integer (0: the cores), got {jobs!r}")
     for d in depths:  # refused here in one line, not as a failure of every job at that depth
         well.check_depth(d)
+
+
+def broomstick_inputs(b: Broomstick) -> tuple:
+    """The files a broomstick read, as its file names them: the well file, its survey (the record's) and the
+    string file; those that exist (a resume's outputs may replace none of them)."""
+    try:
+        survey = json.loads(b.attrs.get("drilling", ""))["well"].get("survey")
+    except (ValueError, TypeError, KeyError, AttributeError):
+        survey = None
+    return tuple(p for p in (b.attrs.get("well"), survey, b.attrs.get("string")) if isinstance(p, str) and
+                 os.path.isfile(p))
+
+
+def _check_cells(b: Broomstick, path: str) -> None:
+    """A file's cells agree with themselves: every array of :data:`BROOM_KEYS` one number per cell, a complete
+    cell solved (a finite hook load) or failed (its reason kept), an interrupted file's ``complete`` kept; else a
+    ``ValueError`` before the file is touched (such a file had been 'finished' with nothing solved)."""
+    shape = b.complete.shape
+    wrong = [key for key in BROOM_KEYS if key not in b.data or b.data[key].shape != shape]
+    if wrong:
+        raise ValueError(f"{path}: a damaged broomstick file ({wrong[0]} is not one number per depth, operation "
+                         f"and friction factor)")
+    failed = np.zeros(shape, bool)
+    for op, mu, d, _ in b.failures:
+        failed[b.cell(op, mu, int(np.flatnonzero(b.depths == d)[0]))] = True
+    empty = b.complete & ~np.isfinite(b.data["hook_load"]) & ~failed
+    if empty.any() or (b.attrs.get("status") == "interrupted" and b.complete.all()):
+        raise ValueError(f"{path}: a damaged broomstick file (cells marked complete hold no equilibrium and no "
+                         f"reason it failed)")
 
 
 def _carry(b: Broomstick, start: Broomstick) -> None:
@@ -349,7 +418,7 @@ def read_broomstick(path: str) -> Broomstick:
             if b.complete.shape != (b.depths.size, len(ops), len(b.mus)):
                 raise ValueError(f"{path}: a damaged broomstick file (its cells do not match its depths)")
             return b
-    except (OSError, KeyError, TypeError, IndexError) as exc:
+    except (OSError, KeyError, TypeError, IndexError, RuntimeError) as exc:  # RuntimeError: h5py's damaged links
         raise ValueError(f"{path}: not a readable broomstick file ({type(exc).__name__}: {exc})") from None
 
 
@@ -364,7 +433,7 @@ def is_broomstick_file(path: str) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return f.attrs.get("kind") == "broomstick"
-    except (OSError, ValueError):
+    except (OSError, ValueError, RuntimeError):
         return False
 
 

@@ -198,6 +198,9 @@ def resume_trip(path: str, *, callback=None, check=None) -> Branch:
         raise ValueError(f"{path} was written before trips could be resumed: run the trip again")
     if not unfinished(data):
         raise ValueError(f"{path} is a finished trip ({data.message or data.status}): nothing to resume")
+    if getattr(data, "unverified", False):  # its record would be trusted, and the result stamped as rodcont's
+        raise ValueError(f"{path} has lost rodcont's checksum (rewritten by another program or by hand): a trip "
+                         f"resumes only from the file rodcont wrote; run it again")
     try:
         rec, run = read_record(data.attrs["drilling"]), json.loads(data.attrs["trip_run"])
         depth_range, points, options = tuple(run["range"]), int(run["points"]), dict(run["options"])
