@@ -209,20 +209,22 @@ def resume_broomstick(path: str, *, executor: Executor | None = None, jobs: int 
     if not isinstance(text, str):
         raise ValueError(f"{path} keeps no record of its well and string (written before broomsticks could be "
                          f"resumed): run it again")
+    damaged = (ValueError, KeyError, TypeError, AttributeError, IndexError, ZeroDivisionError, DrillingError)
     try:
         rec = json.loads(text)
         version = int(rec.get("version", 0))
-        if version > RECORD_VERSION:
-            raise ValueError(f"{path}: its record is version {version}, newer than this rodcont's "
-                             f"({RECORD_VERSION}): update rodcont")
+    except damaged as exc:
+        raise ValueError(f"{path}: a damaged broomstick record ({type(exc).__name__}: {exc})") from None
+    if version > RECORD_VERSION:
+        raise ValueError(f"{path}: its record is version {version}, newer than this rodcont's ({RECORD_VERSION}): "
+                         f"update rodcont")
+    try:
         well, string = well_and_string_back(rec)
         options = dict(rec.get("options", {}))
         check_solve_options(options)
         _check_cases(well, b0.depths, list(b0.mus), b0.operations, jobs)
         place_string(well, string, float(np.max(b0.depths)))  # the record's numbers used once, here
-    except (ValueError, KeyError, TypeError, AttributeError, IndexError, ZeroDivisionError, DrillingError) as exc:
-        if str(exc).startswith(f"{path}: its record is version"):
-            raise
+    except damaged as exc:
         raise ValueError(f"{path}: a damaged broomstick record ({type(exc).__name__}: {exc})") from None
     _check_cells(b0, path)
     meta = {key: v for key, v in b0.attrs.items() if key not in ("kind", "status", "drilling")}
