@@ -91,9 +91,10 @@ def test_phi_traces_give_the_same_folds_and_statuses(gamma):
     # stretch moves by what that mesh corrects, 1.3e-10 for the second fold of Gamma = 0, its Phi by less)
     np.testing.assert_allclose(br.folds["stretch"], ref["fold_stretch"], rtol=0, atol=1e-9)
     assert br.status == old_status(ref["stop_reason"]) and br.stop_reason == ref["stop_reason"]
-    # the step sequence follows the corrector's rounding: on another CPU (numpy 2.4.6, scipy 1.17.1) Gamma = 10 took
-    # 104 points where the reference took 110, every fold, status and special point the same
-    assert abs(len(br) - ref["points"]) <= max(2, 0.1 * ref["points"]), (len(br), ref["points"])
+    # the step sequence follows the corrector's rounding: Gamma = 10 took 104 points on one CPU (numpy 2.4.6, scipy
+    # 1.17.1), 147 on an AMD EPYC (2026-12-04, the same packages, on this code and on a209798 alike) where the
+    # reference took 110, every fold, status and special point the same: the count is bounded, not matched
+    assert 0.8 * ref["points"] - 2 <= len(br) <= 1.4 * ref["points"] + 2, (len(br), ref["points"])
     assert_special(ref["special"], br.table["kind"], br.table["phi_L"])
 
 
