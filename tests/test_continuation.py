@@ -183,24 +183,6 @@ def test_a_residual_at_rounding_is_told_from_a_stagnated_one():
     assert not _at_rounding(F, J, Fp, x, 2.0)
 
 
-def test_the_rounding_check_sums_the_absolute_jacobian_as_abs_of_it_does():
-    """``abs_product(J, v)``, the rounding check's ``|J| v`` without a copy of ``J``, is ``abs(J) @ v`` bit for
-    bit on the collocation Jacobian (CSR and CSC), and on a matrix with duplicate entries (where the sum of the
-    absolute values differs from the absolute value of the sum) it falls back to ``abs(J)``."""
-    import scipy.sparse as sp
-
-    from rodcont.linalg import abs_product
-    b = Bratu(N=20)
-    x = b.disc.project([lambda S: 0.1 * np.sin(np.pi * S)])
-    _, J, _ = b.disc.linearise(x, [2.0], [0])
-    v = np.abs(np.random.default_rng(3).standard_normal(J.shape[1]))
-    for A in (J.tocsr(), J.tocsc()):
-        assert np.array_equal(abs_product(A, v), abs(A) @ v)
-    dup = sp.csr_matrix((np.array([1.0, -1.0, 2.0]), np.array([0, 0, 1]), np.array([0, 2, 3])), shape=(2, 2))
-    assert not dup.has_canonical_format
-    assert np.array_equal(abs_product(dup, np.ones(2)), abs(dup) @ np.ones(2))
-
-
 def test_a_detected_branch_point_whose_location_fails_is_reported_not_dropped(monkeypatch):
     """The determinant changes sign in a step, but no point of the bracket converges (seen on a helix in a
     pipe, where the bordered matrix is singular to rounding near the crossing): the crossing is recorded
