@@ -53,7 +53,7 @@ def test_the_laws_error_estimate_is_the_change_a_smoother_law_makes():
 def test_a_smoother_law_in_the_well_file_lands_where_the_estimate_said(tmp_path):
     # README: with eps = 1e-6 in the well file (1e-5 shipped) the 1000 m rotating torque is 7741.45 N m, the shipped
     # law's 7749.53 N m plus its estimated change -7.99 N m to within 0.1 N m; its own law error 0.06-0.07 N m, a
-    # hundredth of the shipped law's (0.070 where the README was written, 0.058 on an AMD EPYC on 2026-12-04 with
+    # hundredth of the shipped law's (0.07 where the README was written, 0.058 on an AMD EPYC on 2026-12-04 with
     # the same torque to 1e-3 N m: at eps = 1e-6 the estimate's one solve is ill-conditioned enough for the CPU's
     # rounding to move it by a fifth)
     import shutil
